@@ -1,0 +1,21 @@
+//! Subcommand implementations; each returns the process exit code of the contract
+//! (0 ok, 1 a gate failed, 2 bad input).
+
+use std::process::ExitCode;
+
+/// Exit code for bad input (the message names the file, key and reason).
+pub const EXIT_BAD_INPUT: u8 = 2;
+
+/// Marks an error as bad user input, so the process exits with code 2.
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub struct BadInput(pub String);
+
+/// Maps an error to the contract's exit code: 2 for bad input, 1 otherwise.
+pub fn exit_code_for(err: &anyhow::Error) -> ExitCode {
+    if err.chain().any(|cause| cause.is::<BadInput>()) {
+        ExitCode::from(EXIT_BAD_INPUT)
+    } else {
+        ExitCode::from(1)
+    }
+}

@@ -1,0 +1,1 @@
+//! twincell: a physics-simulated digital twin of a robot sorting cell.
