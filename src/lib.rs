@@ -1,1 +1,4 @@
 //! twincell: a physics-simulated digital twin of a robot sorting cell.
+
+pub mod kinematics;
+pub mod rng;
