@@ -15,7 +15,12 @@ struct Cli {
 }
 
 #[derive(Debug, Subcommand)]
-enum Command {}
+enum Command {
+    /// Flange pose for joint angles (forward kinematics).
+    Fk(cli::kinematics::FkArgs),
+    /// Every joint solution for a flange pose (inverse kinematics).
+    Ik(cli::kinematics::IkArgs),
+}
 
 fn main() -> ExitCode {
     tracing_subscriber::fmt()
@@ -26,7 +31,10 @@ fn main() -> ExitCode {
         .with_writer(std::io::stderr)
         .init();
     let cli = Cli::parse();
-    let result: anyhow::Result<ExitCode> = match cli.command {};
+    let result: anyhow::Result<ExitCode> = match cli.command {
+        Command::Fk(args) => cli::kinematics::run_fk(&args),
+        Command::Ik(args) => cli::kinematics::run_ik(&args),
+    };
     match result {
         Ok(code) => code,
         Err(err) => {
