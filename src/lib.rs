@@ -1,4 +1,9 @@
 //! twincell: a physics-simulated digital twin of a robot sorting cell.
 
+pub mod control;
+pub mod demo;
 pub mod kinematics;
+pub mod math;
+pub mod planning;
 pub mod rng;
+pub mod sim;

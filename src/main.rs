@@ -20,6 +20,8 @@ enum Command {
     Fk(cli::kinematics::FkArgs),
     /// Every joint solution for a flange pose (inverse kinematics).
     Ik(cli::kinematics::IkArgs),
+    /// Drive the simulated arm through random IK targets and report tracking errors.
+    Demo(cli::demo::DemoArgs),
 }
 
 fn main() -> ExitCode {
@@ -34,6 +36,7 @@ fn main() -> ExitCode {
     let result: anyhow::Result<ExitCode> = match cli.command {
         Command::Fk(args) => cli::kinematics::run_fk(&args),
         Command::Ik(args) => cli::kinematics::run_ik(&args),
+        Command::Demo(args) => cli::demo::run_demo(&args),
     };
     match result {
         Ok(code) => code,

@@ -3,6 +3,7 @@
 
 use std::process::ExitCode;
 
+pub mod demo;
 pub mod kinematics;
 
 /// Exit code for bad input (the message names the file, key and reason).

@@ -1,0 +1,308 @@
+//! The arm and gripper in the physics world: loaded from URDF as a multibody with joint motors.
+
+use std::path::Path;
+
+use nalgebra::Isometry3;
+use rapier3d::prelude::*;
+use rapier3d_urdf::{UrdfLoaderOptions, UrdfMultibodyOptions, UrdfRobot};
+
+use super::{SimError, World};
+use crate::kinematics::{DOF, JointVector};
+use crate::math::{pose_from_physics, pose_to_physics};
+
+/// Where the built-in URDF lives in the source tree (named in errors).
+pub const BUILTIN_URDF_PATH: &str = "assets/urdf/aubo_i5.urdf";
+/// The project's AUBO i5 + gripper description.
+const BUILTIN_URDF: &str = include_str!("../../assets/urdf/aubo_i5.urdf");
+
+/// Names of the six arm joints in the URDF, base to flange.
+pub const ARM_JOINTS: [&str; DOF] = [
+    "shoulder_joint",
+    "upperArm_joint",
+    "foreArm_joint",
+    "wrist1_joint",
+    "wrist2_joint",
+    "wrist3_joint",
+];
+/// Names of the two finger joints in the URDF.
+pub const FINGER_JOINTS: [&str; 2] = ["finger_left_joint", "finger_right_joint"];
+/// Index of a revolute joint's angle in a multibody joint's coordinates.
+const REVOLUTE_COORD: usize = 3;
+/// Index of a prismatic joint's offset in a multibody joint's coordinates.
+const PRISMATIC_COORD: usize = 0;
+/// The flange link.
+const FLANGE_LINK: &str = "wrist3_Link";
+
+/// Servo gains of the joint position controllers (acceleration-based, per unit inertia).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ArmGains {
+    /// Position gain, 1/s^2.
+    pub stiffness: f32,
+    /// Velocity gain, 1/s.
+    pub damping: f32,
+}
+
+impl Default for ArmGains {
+    fn default() -> Self {
+        // Natural frequency 1000 rad/s, critically damped: stiff like a geared industrial servo.
+        Self {
+            stiffness: 1.0e6,
+            damping: 2.0e3,
+        }
+    }
+}
+
+/// Handles of the arm in a [`World`].
+#[derive(Debug, Clone)]
+pub struct SimArm {
+    joints: [MultibodyJointHandle; DOF],
+    fingers: [MultibodyJointHandle; 2],
+    efforts: [f32; DOF],
+    flange_body: RigidBodyHandle,
+    link_bodies: Vec<(String, RigidBodyHandle)>,
+    world_from_base: Isometry3<f64>,
+    gains: ArmGains,
+}
+
+impl SimArm {
+    /// Loads the URDF file at `path` into `world` with its `base_link` at `world_from_base`.
+    pub fn load(
+        world: &mut World,
+        path: &Path,
+        world_from_base: Isometry3<f64>,
+    ) -> Result<Self, SimError> {
+        let text = std::fs::read_to_string(path).map_err(|e| SimError::Urdf {
+            reason: e.to_string(),
+            path: path.to_path_buf(),
+        })?;
+        Self::from_urdf_str(world, &text, path, world_from_base)
+    }
+
+    /// Loads the project's own arm-and-gripper URDF, built into the binary.
+    pub fn load_builtin(
+        world: &mut World,
+        world_from_base: Isometry3<f64>,
+    ) -> Result<Self, SimError> {
+        Self::from_urdf_str(
+            world,
+            BUILTIN_URDF,
+            Path::new(BUILTIN_URDF_PATH),
+            world_from_base,
+        )
+    }
+
+    /// Loads URDF `text` (read from `path`, which names it in errors and anchors mesh paths).
+    pub fn from_urdf_str(
+        world: &mut World,
+        text: &str,
+        path: &Path,
+        world_from_base: Isometry3<f64>,
+    ) -> Result<Self, SimError> {
+        let urdf_error = |reason: String| SimError::Urdf {
+            reason,
+            path: path.to_path_buf(),
+        };
+        let options = UrdfLoaderOptions {
+            make_roots_fixed: true,
+            shift: pose_to_physics(&world_from_base),
+            // Powered servos never sleep: a new command must act at once.
+            rigid_body_blueprint: RigidBodyBuilder::dynamic().can_sleep(false),
+            ..UrdfLoaderOptions::default()
+        };
+        let mesh_dir = path.parent().unwrap_or(Path::new("."));
+        let (robot, description) = UrdfRobot::from_str(text, options, mesh_dir)
+            .map_err(|e| urdf_error(format!("{e:#}")))?;
+        let link_names: Vec<String> = robot
+            .links
+            .iter()
+            .map(|l| description.links[l.urdf_link_index].name.clone())
+            .collect();
+        let joint_names: Vec<String> = robot
+            .joints
+            .iter()
+            .map(|j| description.joints[j.urdf_joint_index].name.clone())
+            .collect();
+        let efforts_by_name: Vec<f32> = robot
+            .joints
+            .iter()
+            .map(|j| description.joints[j.urdf_joint_index].limit.effort as f32)
+            .collect();
+        let physics = &mut world.physics;
+        // Self-contacts off: neighbouring links overlap at their joints by design; the planner
+        // keeps the arm clear of itself.
+        let handles = robot.insert_using_multibody_joints(
+            &mut physics.bodies,
+            &mut physics.colliders,
+            &mut physics.multibody_joints,
+            UrdfMultibodyOptions::DISABLE_SELF_CONTACTS,
+        );
+        let find_joint = |name: &str| -> Result<(MultibodyJointHandle, f32), SimError> {
+            let index = joint_names.iter().position(|n| n == name);
+            let handle =
+                index.and_then(|i| handles.joints[i].joint.map(|h| (h, efforts_by_name[i])));
+            handle.ok_or_else(|| SimError::MissingJoint {
+                joint: name.to_string(),
+                path: path.to_path_buf(),
+            })
+        };
+        let mut joints = [MultibodyJointHandle::invalid(); DOF];
+        let mut efforts = [0.0f32; DOF];
+        for (i, name) in ARM_JOINTS.iter().enumerate() {
+            (joints[i], efforts[i]) = find_joint(name)?;
+        }
+        let mut fingers = [MultibodyJointHandle::invalid(); 2];
+        for (i, name) in FINGER_JOINTS.iter().enumerate() {
+            fingers[i] = find_joint(name)?.0;
+        }
+        let link_bodies: Vec<(String, RigidBodyHandle)> = link_names
+            .into_iter()
+            .zip(handles.links.iter().map(|l| l.body))
+            .collect();
+        let Some(flange_body) = link_bodies
+            .iter()
+            .find(|(name, _)| name == FLANGE_LINK)
+            .map(|(_, body)| *body)
+        else {
+            return Err(urdf_error(format!("no link named `{FLANGE_LINK}`")));
+        };
+        let arm = Self {
+            joints,
+            fingers,
+            efforts,
+            flange_body,
+            link_bodies,
+            world_from_base,
+            gains: ArmGains::default(),
+        };
+        Ok(arm)
+    }
+
+    /// Pose of the arm's `base_link` in the world.
+    pub fn world_from_base(&self) -> &Isometry3<f64> {
+        &self.world_from_base
+    }
+
+    /// The arm's links and their bodies, in URDF order.
+    pub fn link_bodies(&self) -> &[(String, RigidBodyHandle)] {
+        &self.link_bodies
+    }
+
+    /// Sets the servo gains used by later commands.
+    pub fn set_gains(&mut self, gains: ArmGains) {
+        self.gains = gains;
+    }
+
+    /// Measured joint angles (controller convention).
+    pub fn joint_positions(&self, world: &World) -> JointVector {
+        let mut q = [0.0; DOF];
+        for (value, handle) in q.iter_mut().zip(&self.joints) {
+            if let Some((multibody, link)) = world.physics.multibody_joints.get(*handle) {
+                if let Some(link) = multibody.link(link) {
+                    *value = f64::from(link.joint().coords()[REVOLUTE_COORD]);
+                }
+            }
+        }
+        q
+    }
+
+    /// Measured finger positions: each pad's distance from the gripper's centre line.
+    pub fn finger_positions_m(&self, world: &World) -> [f64; 2] {
+        let mut s = [0.0; 2];
+        for (value, handle) in s.iter_mut().zip(&self.fingers) {
+            if let Some((multibody, link)) = world.physics.multibody_joints.get(*handle) {
+                if let Some(link) = multibody.link(link) {
+                    *value = f64::from(link.joint().coords()[PRISMATIC_COORD]);
+                }
+            }
+        }
+        s
+    }
+
+    /// Commands the joint servos to a position and feed-forward velocity.
+    pub fn command(&self, world: &mut World, q: &JointVector, qd: &JointVector) {
+        for (i, handle) in self.joints.iter().enumerate() {
+            if let Some((multibody, link)) = world.physics.multibody_joints.get_mut(*handle) {
+                if let Some(link) = multibody.link_mut(link) {
+                    link.joint.data.set_motor(
+                        JointAxis::AngX,
+                        q[i] as f32,
+                        qd[i] as f32,
+                        self.gains.stiffness,
+                        self.gains.damping,
+                    );
+                    link.joint
+                        .data
+                        .set_motor_max_force(JointAxis::AngX, self.efforts[i]);
+                }
+            }
+        }
+    }
+
+    /// Drives both fingers towards `pad_offset_m` from the centre line, pushing with at most
+    /// `max_force_n` each: a force-limited parallel gripper.
+    pub fn command_gripper(&self, world: &mut World, pad_offset_m: f64, max_force_n: f64) {
+        for handle in &self.fingers {
+            if let Some((multibody, link)) = world.physics.multibody_joints.get_mut(*handle) {
+                if let Some(link) = multibody.link_mut(link) {
+                    // A stiff, well-damped servo that saturates at the force limit when blocked.
+                    link.joint.data.set_motor(
+                        JointAxis::LinX,
+                        pad_offset_m as f32,
+                        0.0,
+                        4_000.0,
+                        120.0,
+                    );
+                    link.joint
+                        .data
+                        .set_motor_max_force(JointAxis::LinX, max_force_n as f32);
+                }
+            }
+        }
+    }
+
+    /// Places the arm at rest at `q` with the finger pads at `pad_offset_m`, as a trial's
+    /// initial state (this sets the robot's state; it never moves other bodies).
+    pub fn reset_to(&self, world: &mut World, q: &JointVector, pad_offset_m: f64) {
+        let targets: Vec<(usize, f32, usize)> = self
+            .joints
+            .iter()
+            .zip(q)
+            .map(|(handle, &value)| (*handle, value as f32, REVOLUTE_COORD))
+            .chain(
+                self.fingers
+                    .iter()
+                    .map(|handle| (*handle, pad_offset_m as f32, PRISMATIC_COORD)),
+            )
+            .filter_map(|(handle, value, axis)| {
+                let (_, link_id) = world.physics.multibody_joints.get(handle)?;
+                Some((link_id, value, axis))
+            })
+            .collect();
+        let physics = &mut world.physics;
+        let Some((multibody, _)) = physics.multibody_joints.get_mut(self.joints[0]) else {
+            return;
+        };
+        let mut displacement = vec![0.0f32; multibody.ndofs()];
+        for (link_id, value, axis) in targets {
+            if let Some(link) = multibody.link(link_id) {
+                displacement[link.assembly_id()] = value - link.joint().coords()[axis];
+            }
+        }
+        multibody.apply_displacements(&displacement);
+        multibody.generalized_velocity_mut().fill(0.0);
+        multibody.forward_kinematics(&physics.bodies, true);
+        multibody.update_rigid_bodies(&mut physics.bodies, false);
+        self.command(world, q, &[0.0; DOF]);
+        self.command_gripper(world, pad_offset_m, 40.0);
+    }
+
+    /// Pose of the flange in the world.
+    pub fn flange_in_world(&self, world: &World) -> Isometry3<f64> {
+        world
+            .physics
+            .bodies
+            .get(self.flange_body)
+            .map(|body| pose_from_physics(body.position()))
+            .unwrap_or_else(Isometry3::identity)
+    }
+}

@@ -1,0 +1,92 @@
+//! The command-line contract: JSON shapes and exit codes, through the real binary.
+
+use std::process::Command;
+
+use serde_json::Value;
+
+fn twincell(args: &[&str]) -> (i32, String, String) {
+    let output = Command::new(env!("CARGO_BIN_EXE_twincell"))
+        .args(args)
+        .output()
+        .expect("binary runs");
+    (
+        output.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&output.stdout).into_owned(),
+        String::from_utf8_lossy(&output.stderr).into_owned(),
+    )
+}
+
+fn numbers(value: &Value) -> Vec<f64> {
+    value
+        .as_array()
+        .expect("array")
+        .iter()
+        .map(|v| v.as_f64().expect("number"))
+        .collect()
+}
+
+#[test]
+fn fk_then_ik_round_trips_through_the_cli() {
+    let q = ["0.4", "-0.7", "1.3", "0.2", "-1.1", "2.0"];
+    let mut args = vec!["fk"];
+    args.extend(q);
+    args.push("--json");
+    let (code, stdout, stderr) = twincell(&args);
+    assert_eq!(code, 0, "{stderr}");
+    let fk: Value = serde_json::from_str(&stdout).expect("fk JSON");
+    let xyz = numbers(&fk["xyz"]);
+    let rpy = numbers(&fk["rpy"]);
+    let matrix: Vec<Vec<f64>> = fk["matrix"]
+        .as_array()
+        .expect("rows")
+        .iter()
+        .map(numbers)
+        .collect();
+    assert_eq!((xyz.len(), rpy.len(), matrix.len()), (3, 3, 4));
+    for i in 0..3 {
+        assert!((matrix[i][3] - xyz[i]).abs() < 1e-12);
+    }
+    assert_eq!(matrix[3], vec![0.0, 0.0, 0.0, 1.0]);
+    // R = Rz(yaw) Ry(pitch) Rx(roll): element (2,0) is -sin(pitch).
+    assert!((matrix[2][0] + rpy[1].sin()).abs() < 1e-12);
+
+    let pose: Vec<String> = xyz.iter().chain(&rpy).map(|v| format!("{v:.17}")).collect();
+    let mut args = vec!["ik"];
+    args.extend(pose.iter().map(String::as_str));
+    args.push("--json");
+    let (code, stdout, stderr) = twincell(&args);
+    assert_eq!(code, 0, "{stderr}");
+    let ik: Value = serde_json::from_str(&stdout).expect("ik JSON");
+    let solutions: Vec<Vec<f64>> = ik["solutions"]
+        .as_array()
+        .expect("list")
+        .iter()
+        .map(numbers)
+        .collect();
+    let expected: Vec<f64> = q.iter().map(|v| v.parse().expect("number")).collect();
+    assert!(
+        solutions
+            .iter()
+            .any(|s| s.iter().zip(&expected).all(|(a, b)| (a - b).abs() < 1e-9))
+    );
+}
+
+#[test]
+fn unreachable_pose_gives_an_empty_list() {
+    let (code, stdout, _) = twincell(&["ik", "2.0", "0", "0.3", "0", "0", "0", "--json"]);
+    assert_eq!(code, 0);
+    let ik: Value = serde_json::from_str(&stdout).expect("ik JSON");
+    assert_eq!(ik["solutions"].as_array().map(Vec::len), Some(0));
+}
+
+#[test]
+fn bad_input_exits_with_code_2_and_says_why() {
+    let (code, _, stderr) = twincell(&["fk", "0", "0", "0", "0", "0", "nan", "--json"]);
+    assert_eq!(code, 2);
+    assert!(stderr.contains("value 6 is not finite"), "{stderr}");
+    let (code, _, _) = twincell(&["fk", "0", "0", "0", "--json"]);
+    assert_eq!(code, 2);
+    let (code, _, stderr) = twincell(&["demo", "--speed", "3"]);
+    assert_eq!(code, 2);
+    assert!(stderr.contains("--speed"), "{stderr}");
+}
