@@ -194,47 +194,30 @@ impl SimArm {
 
     /// Measured joint angles (controller convention).
     pub fn joint_positions(&self, world: &World) -> JointVector {
-        let mut q = [0.0; DOF];
-        for (value, handle) in q.iter_mut().zip(&self.joints) {
-            if let Some((multibody, link)) = world.physics.multibody_joints.get(*handle) {
-                if let Some(link) = multibody.link(link) {
-                    *value = f64::from(link.joint().coords()[REVOLUTE_COORD]);
-                }
-            }
-        }
-        q
+        self.joints
+            .map(|handle| f64::from(joint_coord(world, handle, REVOLUTE_COORD).unwrap_or(0.0)))
     }
 
     /// Measured finger positions: each pad's distance from the gripper's centre line.
     pub fn finger_positions_m(&self, world: &World) -> [f64; 2] {
-        let mut s = [0.0; 2];
-        for (value, handle) in s.iter_mut().zip(&self.fingers) {
-            if let Some((multibody, link)) = world.physics.multibody_joints.get(*handle) {
-                if let Some(link) = multibody.link(link) {
-                    *value = f64::from(link.joint().coords()[PRISMATIC_COORD]);
-                }
-            }
-        }
-        s
+        self.fingers
+            .map(|handle| f64::from(joint_coord(world, handle, PRISMATIC_COORD).unwrap_or(0.0)))
     }
 
     /// Commands the joint servos to a position and feed-forward velocity.
     pub fn command(&self, world: &mut World, q: &JointVector, qd: &JointVector) {
+        let gains = self.gains;
         for (i, handle) in self.joints.iter().enumerate() {
-            if let Some((multibody, link)) = world.physics.multibody_joints.get_mut(*handle) {
-                if let Some(link) = multibody.link_mut(link) {
-                    link.joint.data.set_motor(
-                        JointAxis::AngX,
-                        q[i] as f32,
-                        qd[i] as f32,
-                        self.gains.stiffness,
-                        self.gains.damping,
-                    );
-                    link.joint
-                        .data
-                        .set_motor_max_force(JointAxis::AngX, self.efforts[i]);
-                }
-            }
+            with_joint_mut(world, *handle, |joint| {
+                joint.set_motor(
+                    JointAxis::AngX,
+                    q[i] as f32,
+                    qd[i] as f32,
+                    gains.stiffness,
+                    gains.damping,
+                );
+                joint.set_motor_max_force(JointAxis::AngX, self.efforts[i]);
+            });
         }
     }
 
@@ -242,21 +225,11 @@ impl SimArm {
     /// `max_force_n` each: a force-limited parallel gripper.
     pub fn command_gripper(&self, world: &mut World, pad_offset_m: f64, max_force_n: f64) {
         for handle in &self.fingers {
-            if let Some((multibody, link)) = world.physics.multibody_joints.get_mut(*handle) {
-                if let Some(link) = multibody.link_mut(link) {
-                    // A stiff, well-damped servo that saturates at the force limit when blocked.
-                    link.joint.data.set_motor(
-                        JointAxis::LinX,
-                        pad_offset_m as f32,
-                        0.0,
-                        4_000.0,
-                        120.0,
-                    );
-                    link.joint
-                        .data
-                        .set_motor_max_force(JointAxis::LinX, max_force_n as f32);
-                }
-            }
+            with_joint_mut(world, *handle, |joint| {
+                // A stiff, well-damped servo that saturates at the force limit when blocked.
+                joint.set_motor(JointAxis::LinX, pad_offset_m as f32, 0.0, 4_000.0, 120.0);
+                joint.set_motor_max_force(JointAxis::LinX, max_force_n as f32);
+            });
         }
     }
 
@@ -304,5 +277,24 @@ impl SimArm {
             .get(self.flange_body)
             .map(|body| pose_from_physics(body.position()))
             .unwrap_or_else(Isometry3::identity)
+    }
+}
+
+/// Coordinate `axis` of a multibody joint, if the joint exists.
+fn joint_coord(world: &World, handle: MultibodyJointHandle, axis: usize) -> Option<f32> {
+    let (multibody, link) = world.physics.multibody_joints.get(handle)?;
+    Some(multibody.link(link)?.joint().coords()[axis])
+}
+
+/// Applies `edit` to a multibody joint's description, if the joint exists.
+fn with_joint_mut(
+    world: &mut World,
+    handle: MultibodyJointHandle,
+    edit: impl FnOnce(&mut GenericJoint),
+) {
+    if let Some((multibody, link)) = world.physics.multibody_joints.get_mut(handle)
+        && let Some(link) = multibody.link_mut(link)
+    {
+        edit(&mut link.joint.data);
     }
 }
