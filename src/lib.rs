@@ -1,5 +1,6 @@
 //! twincell: a physics-simulated digital twin of a robot sorting cell.
 
+pub mod batch;
 pub mod control;
 pub mod demo;
 pub mod kinematics;

@@ -1,0 +1,175 @@
+//! One line of `trials.jsonl`.
+
+use serde::{Deserialize, Serialize};
+
+/// Where perception's answers came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "snake_case")]
+pub enum Perception {
+    /// The rendered camera image through detector and metrology (the product).
+    Camera,
+    /// Ground truth read from the world: for diagnosis only, labelled in every report.
+    Oracle,
+}
+
+/// How a trial ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Outcome {
+    /// The part ended at rest in the bin the truth calls for, the bottle untouched.
+    Success,
+    /// Anything else; see the failure reason.
+    Failure,
+}
+
+/// Every way a trial can fail.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum FailureReason {
+    /// Perception found no part at the pick station.
+    NotDetected,
+    /// A grasp or place pose lies outside the arm's workspace.
+    Unreachable,
+    /// A pose is in the workspace but no joint solution is within limits.
+    NoIkSolution,
+    /// The planned motion would hit (or did hit) the cell or the bottle.
+    Collision,
+    /// The part slid out of the fingers while lifted or carried.
+    Slipped,
+    /// The part fell before reaching a bin.
+    Dropped,
+    /// The part came to rest in the wrong bin, or outside any bin.
+    WrongBin,
+    /// The arm or gripper touched or moved the bottle beyond the tolerance.
+    DistractorTouched,
+    /// The bottle was picked instead of the part.
+    DistractorPicked,
+    /// A state ran past its time-out.
+    Timeout,
+    /// The physics state became non-finite.
+    PhysicsBlowUp,
+    /// The trial's code panicked.
+    Panic,
+}
+
+impl FailureReason {
+    /// The reason's name as written in reports.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::NotDetected => "not_detected",
+            Self::Unreachable => "unreachable",
+            Self::NoIkSolution => "no_ik_solution",
+            Self::Collision => "collision",
+            Self::Slipped => "slipped",
+            Self::Dropped => "dropped",
+            Self::WrongBin => "wrong_bin",
+            Self::DistractorTouched => "distractor_touched",
+            Self::DistractorPicked => "distractor_picked",
+            Self::Timeout => "timeout",
+            Self::PhysicsBlowUp => "physics_blow_up",
+            Self::Panic => "panic",
+        }
+    }
+}
+
+/// The truth about the trial's part.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PartRecord {
+    /// Part type name from the scenario's table.
+    pub part_type: String,
+    /// True bore out-of-roundness (Rmax - Rmin), mm.
+    pub true_roundness_mm: f64,
+    /// True mean bore diameter, mm.
+    pub true_bore_diameter_mm: f64,
+    /// Whether the truth says accept (roundness within tolerance).
+    pub truly_acceptable: bool,
+    /// The bin the truth calls for.
+    pub correct_bin: String,
+}
+
+/// What perception and the sorter decided.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct DecisionRecord {
+    /// The detected part type.
+    pub detected_type: String,
+    /// Measured roundness, mm (None when not measured).
+    pub measured_roundness_mm: Option<f64>,
+    /// Measured bore diameter, mm.
+    pub measured_bore_diameter_mm: Option<f64>,
+    /// Accept or reject.
+    pub accept: bool,
+    /// The bin chosen.
+    pub bin: String,
+}
+
+/// Wall-clock costs of a trial: the only fields that differ between identical runs.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct TrialTiming {
+    /// Whole trial, ms.
+    pub wall_ms: f64,
+    /// Physics stepping, ms.
+    pub physics_ms: f64,
+    /// Camera rendering, ms.
+    pub render_ms: f64,
+    /// Detector, ms.
+    pub detect_ms: f64,
+    /// Metrology, ms.
+    pub metrology_ms: f64,
+    /// IK, trajectory and collision checks, ms.
+    pub planning_ms: f64,
+}
+
+/// One trial's result: a line of `trials.jsonl`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TrialRecord {
+    /// Trial index within the scenario, from 0.
+    pub trial: u32,
+    /// The trial's own seed (derived from the scenario seed and the index).
+    pub seed: u64,
+    /// Success or failure.
+    pub outcome: Outcome,
+    /// Why it failed, when it did.
+    pub failure: Option<FailureReason>,
+    /// Human-readable detail of the failure (state, values).
+    pub detail: Option<String>,
+    /// The truth about the part.
+    pub part: Option<PartRecord>,
+    /// What perception decided.
+    pub decision: Option<DecisionRecord>,
+    /// The bin the part came to rest in, if any.
+    pub placed_bin: Option<String>,
+    /// Whether anything of the robot touched the bottle.
+    pub distractor_touched: bool,
+    /// Whether the bottle was lifted by the gripper.
+    pub distractor_picked: bool,
+    /// How far the bottle moved, mm.
+    pub distractor_displacement_mm: f64,
+    /// Simulated time from the part's arrival at the pick station to the arm's retreat, s.
+    pub cycle_time_s: f64,
+    /// Simulated time of the whole trial, s.
+    pub sim_time_s: f64,
+    /// Wall-clock costs (excluded from determinism comparisons).
+    pub timing: TrialTiming,
+}
+
+impl TrialRecord {
+    /// A failed trial that got no further than `reason`.
+    pub fn failed(index: u32, seed: u64, reason: FailureReason, detail: impl Into<String>) -> Self {
+        Self {
+            trial: index,
+            seed,
+            outcome: Outcome::Failure,
+            failure: Some(reason),
+            detail: Some(detail.into()),
+            part: None,
+            decision: None,
+            placed_bin: None,
+            distractor_touched: false,
+            distractor_picked: false,
+            distractor_displacement_mm: 0.0,
+            cycle_time_s: 0.0,
+            sim_time_s: 0.0,
+            timing: TrialTiming::default(),
+        }
+    }
+}
