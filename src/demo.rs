@@ -6,6 +6,7 @@ use std::path::Path;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion};
 use serde::Serialize;
 
+use crate::cell::gripper_tcp;
 use crate::control::TrajectoryFollower;
 use crate::kinematics::{AnalyticIk, ArmModel, DOF, IkSolver, JointVector, tcp_pose};
 use crate::planning::JointTrajectory;
@@ -72,10 +73,6 @@ pub struct DemoReport {
     pub sim_time_s: f64,
 }
 
-/// The TCP of the project's gripper, in the flange frame.
-pub fn gripper_tcp() -> Isometry3<f64> {
-    Isometry3::translation(0.0, 0.0, 0.125)
-}
 
 /// A random TCP target that a gripper would use over a table: pointing down within 30 degrees,
 /// any yaw, 0.3-0.7 m from the base axis, 0.05-0.5 m above the base.

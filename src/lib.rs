@@ -1,10 +1,12 @@
 //! twincell: a physics-simulated digital twin of a robot sorting cell.
 
 pub mod batch;
+pub mod cell;
 pub mod control;
 pub mod demo;
 pub mod kinematics;
 pub mod math;
 pub mod planning;
 pub mod rng;
+pub mod scenario;
 pub mod sim;

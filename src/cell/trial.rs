@@ -1,0 +1,617 @@
+//! The task controller: one sorting trial as an explicit state machine over the physics world.
+//!
+//! wait -> perceive -> plan -> approach -> grasp -> lift -> transport -> place -> retreat, each
+//! with a time-out and a named failure for every way it can go wrong.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+use rapier3d::prelude::*;
+
+use super::{Cell, CellError, Tag};
+use crate::batch::{
+    DecisionRecord, FailureReason, Outcome, PartRecord, Perception, TrialRecord, TrialRunner,
+    TrialTiming,
+};
+use crate::control::TrajectoryFollower;
+use crate::kinematics::{AnalyticIk, ArmModel, IkSolver, JointVector};
+use crate::math::pose_from_physics;
+use crate::planning::{Carried, CollisionChecker, JointTrajectory, Obstacle};
+use crate::rng::SimRng;
+use crate::scenario::Scenario;
+
+/// Belt drive ramp, m/s^2: gentle enough that a standing bottle does not tip.
+const BELT_ACCEL_M_S2: f64 = 1.0;
+/// Height of the TCP above the part's bottom while grasping: the fingertips stop 8 mm above the
+/// belt.
+const GRASP_TCP_ABOVE_BOTTOM_M: f64 = 0.023;
+/// Approach and retreat distance above grasp and place poses, m.
+const APPROACH_M: f64 = 0.12;
+/// Clearance the planner keeps from obstacles, m.
+const PLANNING_MARGIN_M: f64 = 0.004;
+
+/// Runs sorting trials of a scenario in the cell.
+#[derive(Debug, Clone)]
+pub struct CellTrialRunner {
+    scenario: Scenario,
+    perception: Perception,
+    urdf: Option<(PathBuf, String)>,
+}
+
+impl CellTrialRunner {
+    /// A runner for `scenario` (read from `scenario_path`, which anchors a relative URDF path).
+    pub fn new(scenario: Scenario, scenario_path: &Path, perception: Perception) -> Result<Self, CellError> {
+        let urdf = match &scenario.robot.urdf {
+            Some(relative) => {
+                let path = scenario_path.parent().unwrap_or(Path::new(".")).join(relative);
+                let text = std::fs::read_to_string(&path).map_err(|e| {
+                    CellError::Sim(crate::sim::SimError::Urdf {
+                        reason: e.to_string(),
+                        path: path.clone(),
+                    })
+                })?;
+                Some((path, text))
+            }
+            None => None,
+        };
+        if perception == Perception::Camera {
+            return Err(CellError::Scenario(
+                "camera perception is not available yet in this build; run with --perception oracle".into(),
+            ));
+        }
+        Ok(Self {
+            scenario,
+            perception,
+            urdf,
+        })
+    }
+
+    /// The scenario run.
+    pub fn scenario(&self) -> &Scenario {
+        &self.scenario
+    }
+
+    /// Overrides the grip force (for experiments such as a too-weak gripper).
+    pub fn set_grip_force_n(&mut self, force_n: f64) {
+        self.scenario.gripper.grip_force_n = force_n;
+    }
+}
+
+impl TrialRunner for CellTrialRunner {
+    fn run_trial(&self, index: u32, seed: u64) -> TrialRecord {
+        let started = Instant::now();
+        let mut rng = SimRng::new(seed);
+        let mut record = match Cell::build(&self.scenario, self.urdf.as_ref(), &mut rng) {
+            Ok(cell) => Trial::new(&self.scenario, self.perception, cell).run(index, seed),
+            Err(e) => TrialRecord::failed(index, seed, FailureReason::PhysicsBlowUp, format!("cell could not be built: {e}")),
+        };
+        record.timing.wall_ms = started.elapsed().as_secs_f64() * 1e3;
+        record
+    }
+}
+
+/// A failure with its reason and detail.
+#[derive(Debug)]
+struct Failure {
+    reason: FailureReason,
+    detail: String,
+}
+
+fn fail<T>(reason: FailureReason, detail: impl Into<String>) -> Result<T, Failure> {
+    Err(Failure {
+        reason,
+        detail: detail.into(),
+    })
+}
+
+/// What perception reports about the pick station.
+#[derive(Debug, Clone)]
+struct Percept {
+    part_type: String,
+    /// Part's centre on the belt (x, y) and bottom z, world.
+    part_xy: [f64; 2],
+    part_outer_radius_m: f64,
+    part_height_m: f64,
+    roundness_mm: Option<f64>,
+    bore_diameter_mm: Option<f64>,
+    /// The bottle as an obstacle, in the world.
+    bottle: Option<(Isometry3<f64>, SharedShape)>,
+}
+
+/// How a motion is watched while it runs.
+#[derive(Debug, Clone, Copy)]
+enum Watch {
+    Free,
+    /// The part is held: it must stay where it was in the TCP frame.
+    Holding { tcp_from_part: Isometry3<f64> },
+}
+
+struct Trial<'a> {
+    scenario: &'a Scenario,
+    perception: Perception,
+    cell: Cell,
+    model: ArmModel,
+    ik: AnalyticIk,
+    timing: TrialTiming,
+    belt_target_m_s: f64,
+    bottle_rest: Option<Isometry3<f64>>,
+    bottle_touched: bool,
+    finger_command_m: f64,
+    grip_force_n: f64,
+    q: JointVector,
+    pick_time_s: Option<f64>,
+}
+
+impl<'a> Trial<'a> {
+    fn new(scenario: &'a Scenario, perception: Perception, cell: Cell) -> Self {
+        let model = Cell::arm_model();
+        let ik = match AnalyticIk::new(model.clone()) {
+            Ok(ik) => ik,
+            Err(_) => unreachable!("the AUBO i5 table has the solver's structure"),
+        };
+        Self {
+            scenario,
+            perception,
+            cell,
+            model,
+            ik,
+            timing: TrialTiming::default(),
+            belt_target_m_s: 0.0,
+            bottle_rest: None,
+            bottle_touched: false,
+            finger_command_m: 0.045,
+            grip_force_n: scenario.gripper.grip_force_n,
+            q: scenario.robot.home_q_rad,
+            pick_time_s: None,
+        }
+    }
+
+    fn run(mut self, index: u32, seed: u64) -> TrialRecord {
+        let part = &self.cell.part;
+        let true_roundness_mm = part.bore.roundness_m() * 1000.0;
+        let truly_acceptable = true_roundness_mm <= self.scenario.roundness_tolerance_mm;
+        let correct_bin = self.bin_for(&part.type_name, truly_acceptable);
+        let part_record = PartRecord {
+            part_type: part.type_name.clone(),
+            true_roundness_mm,
+            true_bore_diameter_mm: part.bore.mean_diameter_m() * 1000.0,
+            truly_acceptable,
+            correct_bin: correct_bin.clone(),
+        };
+        let mut decision = None;
+        let result = self.sort(&mut decision);
+        let placed_bin = self.bin_holding_part();
+        let displacement_m = self.bottle_displacement_m();
+        let bottle_picked = self.bottle_lifted();
+        let touched = self.bottle_touched || displacement_m > self.scenario.task.bottle_tolerance_m;
+        let mut outcome = Outcome::Success;
+        let (mut failure, mut detail) = (None, None);
+        if let Err(f) = result {
+            (failure, detail) = (Some(f.reason), Some(f.detail));
+        } else if bottle_picked {
+            (failure, detail) = (Some(FailureReason::DistractorPicked), Some("the bottle was lifted".into()));
+        } else if touched {
+            (failure, detail) = (
+                Some(FailureReason::DistractorTouched),
+                Some(format!("bottle moved {:.1} mm (contact: {})", displacement_m * 1e3, self.bottle_touched)),
+            );
+        } else if placed_bin.as_deref() != Some(correct_bin.as_str()) {
+            (failure, detail) = (
+                Some(FailureReason::WrongBin),
+                Some(format!("part in {}, belongs in {correct_bin}", placed_bin.as_deref().unwrap_or("no bin"))),
+            );
+        }
+        if failure.is_some() {
+            outcome = Outcome::Failure;
+        }
+        let sim_time_s = self.cell.world.time_s();
+        TrialRecord {
+            trial: index,
+            seed,
+            outcome,
+            failure,
+            detail,
+            part: Some(part_record),
+            decision,
+            placed_bin,
+            distractor_touched: touched,
+            distractor_picked: bottle_picked,
+            distractor_displacement_mm: displacement_m * 1e3,
+            cycle_time_s: self.pick_time_s.map_or(0.0, |t| sim_time_s - t),
+            sim_time_s,
+            timing: self.timing,
+        }
+    }
+
+    fn bin_for(&self, part_type: &str, accept: bool) -> String {
+        let bin = if accept { self.scenario.accept_bin(part_type) } else { self.scenario.reject_bin() };
+        bin.map(|b| b.name.clone()).unwrap_or_default()
+    }
+
+    /// The whole task; `decision` is filled once perception has decided.
+    fn sort(&mut self, decision: &mut Option<DecisionRecord>) -> Result<(), Failure> {
+        self.wait_for_part()?;
+        self.pick_time_s = Some(self.cell.world.time_s());
+        let percept = self.perceive()?;
+        let accept = percept.roundness_mm.is_some_and(|r| r <= self.scenario.roundness_tolerance_mm);
+        let bin = self.bin_for(&percept.part_type, accept);
+        *decision = Some(DecisionRecord {
+            detected_type: percept.part_type.clone(),
+            measured_roundness_mm: percept.roundness_mm,
+            measured_bore_diameter_mm: percept.bore_diameter_mm,
+            accept,
+            bin: bin.clone(),
+        });
+        let plan_started = Instant::now();
+        let checker = self.checker_with(&percept);
+        let plan = self.plan_pick(&percept, &checker);
+        self.timing.planning_ms += plan_started.elapsed().as_secs_f64() * 1e3;
+        let plan = plan?;
+
+        // Approach: open, move above the part, descend.
+        let open = percept.part_outer_radius_m + self.scenario.gripper.open_clearance_m;
+        self.set_gripper(open, 40.0);
+        self.execute(&plan.to_pregrasp, Watch::Free)?;
+        self.execute(&plan.descend, Watch::Free)?;
+        // Grasp: close with the set force until the fingers stop.
+        self.grasp(percept.part_outer_radius_m)?;
+        let tcp_from_part = self.tcp_from_part()?;
+        let watch = Watch::Holding { tcp_from_part };
+        // Lift, transport, lower into the bin.
+        self.execute(&plan.lift, watch)?;
+        let plan_started = Instant::now();
+        let place = self.plan_place(&percept, &bin, &plan.lift_end, &checker);
+        self.timing.planning_ms += plan_started.elapsed().as_secs_f64() * 1e3;
+        let place = place?;
+        self.execute(&place.transport, watch)?;
+        self.execute(&place.lower, watch)?;
+        // Release and retreat.
+        self.set_gripper(open, 40.0);
+        self.settle(0.3)?;
+        self.execute(&place.retreat, Watch::Free)?;
+        self.settle(0.4)?;
+        Ok(())
+    }
+
+    /// Runs the belt until the photo-eye sees something, then stops it and lets things settle.
+    fn wait_for_part(&mut self) -> Result<(), Failure> {
+        self.belt_target_m_s = self.scenario.conveyor.speed_m_s;
+        let deadline = self.cell.world.time_s() + self.scenario.task.wait_timeout_s;
+        // Hold the arm at home while waiting.
+        self.hold();
+        while !self.cell.photo_eye_blocked() {
+            if self.cell.world.time_s() > deadline {
+                return fail(FailureReason::Timeout, "no part reached the photo-eye");
+            }
+            self.step()?;
+        }
+        self.belt_target_m_s = 0.0;
+        while self.cell.conveyor.speed_m_s() > 0.0 {
+            self.step()?;
+        }
+        self.settle(0.25)?;
+        self.bottle_rest = self.cell.bottle_body.and_then(|b| self.cell.body_pose(b));
+        Ok(())
+    }
+
+    fn perceive(&mut self) -> Result<Percept, Failure> {
+        match self.perception {
+            Perception::Oracle => self.perceive_oracle(),
+            Perception::Camera => fail(FailureReason::NotDetected, "camera perception is not available in this build"),
+        }
+    }
+
+    /// Ground truth read from the world (diagnosis mode).
+    fn perceive_oracle(&self) -> Result<Percept, Failure> {
+        let Some(part_pose) = self.cell.body_pose(self.cell.part_body) else {
+            return fail(FailureReason::NotDetected, "part body missing");
+        };
+        let part = &self.cell.part;
+        let bottle = self.cell.bottle_body.and_then(|body| {
+            let rb = self.cell.world.physics.bodies.get(body)?;
+            let pose = pose_from_physics(rb.position());
+            // The bottle's bounding cylinder as the planner's obstacle.
+            let bottle = &self.scenario.bottle;
+            let shape = SharedShape::cylinder((bottle.height_m / 2.0) as f32, bottle.radius_m as f32);
+            let center = pose
+                * Isometry3::from_parts(
+                    Translation3::new(0.0, 0.0, bottle.height_m / 2.0),
+                    UnitQuaternion::from_euler_angles(std::f64::consts::FRAC_PI_2, 0.0, 0.0),
+                );
+            Some((center, shape))
+        });
+        Ok(Percept {
+            part_type: part.type_name.clone(),
+            part_xy: [part_pose.translation.x, part_pose.translation.y],
+            part_outer_radius_m: part.outer_radius_m,
+            part_height_m: part.height_m,
+            roundness_mm: Some(part.bore.roundness_m() * 1000.0),
+            bore_diameter_mm: Some(part.bore.mean_diameter_m() * 1000.0),
+            bottle,
+        })
+    }
+
+    fn checker_with(&self, percept: &Percept) -> CollisionChecker {
+        let mut checker = CollisionChecker::new(
+            self.model.clone(),
+            self.cell.robot_shapes.clone(),
+            self.cell.finger_reference_m,
+            self.cell.obstacles.clone(),
+            PLANNING_MARGIN_M,
+        );
+        if let Some((pose, shape)) = &percept.bottle {
+            checker.add_obstacle(Obstacle {
+                name: "bottle".into(),
+                base_from_shape: self.cell.arm.world_from_base().inverse() * pose,
+                shape: shape.clone(),
+            });
+        }
+        checker
+    }
+
+    /// TCP pose in the arm's base frame: pointing down, fingers along world yaw, at world xyz.
+    fn tcp_in_base(&self, xyz: Vector3<f64>, yaw_rad: f64) -> Isometry3<f64> {
+        let world = Isometry3::from_parts(
+            Translation3::from(xyz),
+            UnitQuaternion::from_euler_angles(0.0, 0.0, yaw_rad) * UnitQuaternion::from_euler_angles(std::f64::consts::PI, 0.0, 0.0),
+        );
+        self.cell.arm.world_from_base().inverse() * world
+    }
+
+    fn plan_pick(&self, percept: &Percept, checker: &CollisionChecker) -> Result<PickPlan, Failure> {
+        let belt_top = self.cell.belt_top_z;
+        let [x, y] = percept.part_xy;
+        let grasp_z = belt_top + GRASP_TCP_ABOVE_BOTTOM_M;
+        let bottle_top = percept.bottle.as_ref().map_or(belt_top, |(pose, _)| {
+            pose.translation.z + self.scenario.bottle.height_m / 2.0
+        });
+        // Lift so the part's bottom clears the bottle and the rails.
+        let lift_z = grasp_z + (bottle_top - belt_top + 0.04).max(APPROACH_M);
+        // Fingers close across the line to the bottle, so neither finger passes near it.
+        let preferred_yaw = percept.bottle.as_ref().map_or(0.0, |(pose, _)| {
+            (pose.translation.y - y).atan2(pose.translation.x - x) + std::f64::consts::FRAC_PI_2
+        });
+        let open = percept.part_outer_radius_m + self.scenario.gripper.open_clearance_m;
+        let speed = self.scenario.robot.speed_fraction;
+        let mut reachable = false;
+        let mut last_hit = String::new();
+        for offset_deg in [0.0, 180.0, 30.0, -30.0, 210.0, 150.0, 60.0, -60.0, 90.0, 270.0] {
+            let yaw = preferred_yaw + f64::to_radians(offset_deg);
+            let above = self.tcp_in_base(Vector3::new(x, y, grasp_z + APPROACH_M), yaw);
+            let at = self.tcp_in_base(Vector3::new(x, y, grasp_z), yaw);
+            let lifted = self.tcp_in_base(Vector3::new(x, y, lift_z), yaw);
+            let Some(q_above) = self.ik.solve(&above).nearest(&self.q) else { continue };
+            let Some(q_at) = self.ik.solve(&at).nearest(&q_above) else { continue };
+            let Some(q_lift) = self.ik.solve(&lifted).nearest(&q_at) else { continue };
+            reachable = true;
+            let to_pregrasp = JointTrajectory::through(&self.model, &[self.q, q_above], speed);
+            let descend = JointTrajectory::through(&self.model, &[q_above, q_at], speed * 0.5);
+            let lift = JointTrajectory::through(&self.model, &[q_at, q_lift], speed * 0.5);
+            let hit = checker
+                .check_trajectory(&to_pregrasp, open, None, &[])
+                .or_else(|| checker.check_trajectory(&descend, open, None, &[]));
+            match hit {
+                Some(hit) => last_hit = format!("{} would hit {} at yaw {offset_deg} deg", hit.link, hit.obstacle),
+                None => {
+                    return Ok(PickPlan {
+                        to_pregrasp,
+                        descend,
+                        lift,
+                        lift_end: q_lift,
+                    });
+                }
+            }
+        }
+        if reachable {
+            fail(FailureReason::Collision, last_hit)
+        } else {
+            fail(FailureReason::Unreachable, format!("no IK solution to grasp the part at ({x:.3}, {y:.3})"))
+        }
+    }
+
+    fn plan_place(&self, percept: &Percept, bin_name: &str, q_start: &JointVector, checker: &CollisionChecker) -> Result<PlacePlan, Failure> {
+        let Some(bin) = self.cell.bins.iter().find(|b| b.name == bin_name) else {
+            return fail(FailureReason::WrongBin, format!("no bin named {bin_name}"));
+        };
+        let floor = bin.floor_center;
+        let place_z = floor.z + 0.012 + GRASP_TCP_ABOVE_BOTTOM_M;
+        let above_z = floor.z + bin.wall_height + 0.04 + GRASP_TCP_ABOVE_BOTTOM_M;
+        let carried = Carried {
+            tcp_from_shape: Isometry3::from_parts(
+                Translation3::new(0.0, 0.0, -(percept.part_height_m / 2.0 - GRASP_TCP_ABOVE_BOTTOM_M)),
+                UnitQuaternion::from_euler_angles(std::f64::consts::FRAC_PI_2, 0.0, 0.0),
+            ),
+            shape: SharedShape::cylinder((percept.part_height_m / 2.0) as f32, percept.part_outer_radius_m as f32),
+        };
+        let grip = percept.part_outer_radius_m;
+        let open = grip + self.scenario.gripper.open_clearance_m;
+        let speed = self.scenario.robot.speed_fraction;
+        let mut reachable = false;
+        let mut last_hit = String::new();
+        for yaw_deg in [0.0, 90.0, 180.0, 270.0, 45.0, 135.0, 225.0, 315.0] {
+            let yaw = f64::to_radians(yaw_deg);
+            let above = self.tcp_in_base(Vector3::new(floor.x, floor.y, above_z), yaw);
+            let at = self.tcp_in_base(Vector3::new(floor.x, floor.y, place_z), yaw);
+            let Some(q_above) = self.ik.solve(&above).nearest(q_start) else { continue };
+            let Some(q_at) = self.ik.solve(&at).nearest(&q_above) else { continue };
+            reachable = true;
+            let transport = JointTrajectory::through(&self.model, &[*q_start, q_above], speed);
+            let lower = JointTrajectory::through(&self.model, &[q_above, q_at], speed * 0.5);
+            let retreat = JointTrajectory::through(&self.model, &[q_at, q_above, self.scenario.robot.home_q_rad], speed);
+            let hit = checker
+                .check_trajectory(&transport, grip, Some(&carried), &[])
+                .or_else(|| checker.check_trajectory(&lower, grip, Some(&carried), &[]))
+                .or_else(|| checker.check_trajectory(&retreat, open, None, &[]));
+            match hit {
+                Some(hit) => last_hit = format!("{} would hit {} placing at yaw {yaw_deg} deg", hit.link, hit.obstacle),
+                None => return Ok(PlacePlan { transport, lower, retreat }),
+            }
+        }
+        if reachable {
+            fail(FailureReason::Collision, last_hit)
+        } else {
+            fail(FailureReason::Unreachable, format!("bin {bin_name} is out of reach"))
+        }
+    }
+
+    fn set_gripper(&mut self, offset_m: f64, force_n: f64) {
+        self.finger_command_m = offset_m;
+        self.grip_force_n = force_n;
+    }
+
+    /// Closes the fingers with the scenario's force until they stop.
+    fn grasp(&mut self, part_radius_m: f64) -> Result<(), Failure> {
+        self.set_gripper(0.0, self.scenario.gripper.grip_force_n);
+        let mut still_for = 0.0;
+        let mut last = self.cell.arm.finger_positions_m(&self.cell.world);
+        let start = self.cell.world.time_s();
+        let dt = self.cell.world.params().dt_s;
+        while still_for < 0.12 {
+            if self.cell.world.time_s() - start > 1.5 {
+                return fail(FailureReason::Timeout, "fingers did not come to rest");
+            }
+            self.step()?;
+            let now = self.cell.arm.finger_positions_m(&self.cell.world);
+            let moving = now.iter().zip(&last).any(|(a, b)| (a - b).abs() > 0.0005 * dt);
+            still_for = if moving { 0.0 } else { still_for + dt };
+            last = now;
+        }
+        let closed_on_part = last.iter().all(|s| *s > part_radius_m - 0.004);
+        if !closed_on_part {
+            return fail(FailureReason::Slipped, format!("fingers closed to {:.1}/{:.1} mm: nothing between them", last[0] * 1e3, last[1] * 1e3));
+        }
+        Ok(())
+    }
+
+    fn tcp_in_world(&self) -> Isometry3<f64> {
+        self.cell.arm.flange_in_world(&self.cell.world) * self.model.flange_from_tcp
+    }
+
+    fn tcp_from_part(&self) -> Result<Isometry3<f64>, Failure> {
+        let Some(part) = self.cell.body_pose(self.cell.part_body) else {
+            return fail(FailureReason::PhysicsBlowUp, "part body missing");
+        };
+        Ok(self.tcp_in_world().inverse() * part)
+    }
+
+    /// Plays a trajectory to the end plus a short settle, watching for slips, drops and the bottle.
+    fn execute(&mut self, trajectory: &JointTrajectory, watch: Watch) -> Result<(), Failure> {
+        let follower = TrajectoryFollower::new(trajectory.clone(), self.cell.world.time_s());
+        let end = self.cell.world.time_s() + trajectory.duration_s() + 0.15;
+        while self.cell.world.time_s() < end {
+            if let Some(sample) = follower.update(&mut self.cell.world, &self.cell.arm) {
+                self.q = sample.q;
+            }
+            self.step_physics()?;
+            if let Watch::Holding { tcp_from_part } = watch {
+                self.check_hold(&tcp_from_part)?;
+            }
+        }
+        if let Some(q) = trajectory.end() {
+            self.q = q;
+        }
+        Ok(())
+    }
+
+    fn check_hold(&self, tcp_from_part: &Isometry3<f64>) -> Result<(), Failure> {
+        let now = self.tcp_from_part()?;
+        let drift = (now.translation.vector - tcp_from_part.translation.vector).norm();
+        if drift <= self.scenario.task.slip_tolerance_m {
+            return Ok(());
+        }
+        let part_z = now.translation.vector.norm();
+        if drift > 0.05 || part_z > 0.2 {
+            fail(FailureReason::Dropped, format!("part fell from the fingers ({:.0} mm away)", drift * 1e3))
+        } else {
+            fail(FailureReason::Slipped, format!("part slid {:.1} mm in the fingers", drift * 1e3))
+        }
+    }
+
+    /// Holds the arm where it is for `duration_s`.
+    fn settle(&mut self, duration_s: f64) -> Result<(), Failure> {
+        let end = self.cell.world.time_s() + duration_s;
+        while self.cell.world.time_s() < end {
+            self.step()?;
+        }
+        Ok(())
+    }
+
+    fn hold(&mut self) {
+        self.cell.arm.command(&mut self.cell.world, &self.q, &[0.0; 6]);
+    }
+
+    /// One step holding the current arm command.
+    fn step(&mut self) -> Result<(), Failure> {
+        self.hold();
+        self.step_physics()
+    }
+
+    /// One physics step with the belt and gripper drives, then the blow-up and bottle checks.
+    fn step_physics(&mut self) -> Result<(), Failure> {
+        let dt = self.cell.world.params().dt_s;
+        self.cell.conveyor.ramp_towards(self.belt_target_m_s as f32, (BELT_ACCEL_M_S2 * dt) as f32);
+        self.cell.arm.command_gripper(&mut self.cell.world, self.finger_command_m, self.grip_force_n);
+        let started = Instant::now();
+        self.cell.world.step_with_hooks(&self.cell.conveyor);
+        self.timing.physics_ms += started.elapsed().as_secs_f64() * 1e3;
+        let time_s = self.cell.world.time_s();
+        if time_s > self.scenario.task.trial_timeout_s {
+            return fail(FailureReason::Timeout, format!("trial ran past {:.0} s", self.scenario.task.trial_timeout_s));
+        }
+        for body in [Some(self.cell.part_body), self.cell.bottle_body].into_iter().flatten() {
+            let finite = self.cell.world.physics.bodies.get(body).is_some_and(|b| b.position().is_finite() && b.linvel().is_finite());
+            if !finite {
+                return fail(FailureReason::PhysicsBlowUp, format!("a body's state became non-finite at t = {time_s:.3} s"));
+            }
+        }
+        if !self.bottle_touched {
+            self.bottle_touched = self.robot_touches_bottle();
+        }
+        Ok(())
+    }
+
+    fn robot_touches_bottle(&self) -> bool {
+        let Some(bottle) = self.cell.bottle_body else { return false };
+        let physics = &self.cell.world.physics;
+        let Some(rb) = physics.bodies.get(bottle) else { return false };
+        rb.colliders().iter().any(|&collider| {
+            physics.narrow_phase.contact_pairs_with(collider).any(|pair| {
+                let other = if pair.collider1 == collider { pair.collider2 } else { pair.collider1 };
+                pair.has_any_active_contact()
+                    && physics.colliders.get(other).is_some_and(|c| c.user_data == Tag::Robot as u128)
+            })
+        })
+    }
+
+    fn bin_holding_part(&self) -> Option<String> {
+        let pose = self.cell.body_pose(self.cell.part_body)?;
+        let center = pose.translation.vector;
+        self.cell.bins.iter().find(|bin| bin.contains(&center)).map(|bin| bin.name.clone())
+    }
+
+    fn bottle_displacement_m(&self) -> f64 {
+        let (Some(body), Some(rest)) = (self.cell.bottle_body, self.bottle_rest) else { return 0.0 };
+        self.cell
+            .body_pose(body)
+            .map_or(0.0, |now| (now.translation.vector - rest.translation.vector).norm())
+    }
+
+    fn bottle_lifted(&self) -> bool {
+        let (Some(body), Some(rest)) = (self.cell.bottle_body, self.bottle_rest) else { return false };
+        self.cell.body_pose(body).is_some_and(|now| now.translation.z - rest.translation.z > 0.02)
+    }
+}
+
+struct PickPlan {
+    to_pregrasp: JointTrajectory,
+    descend: JointTrajectory,
+    lift: JointTrajectory,
+    lift_end: JointVector,
+}
+
+struct PlacePlan {
+    transport: JointTrajectory,
+    lower: JointTrajectory,
+    retreat: JointTrajectory,
+}

@@ -1,0 +1,203 @@
+//! Collision checking of planned arm motion against the cell's static obstacles, with parry.
+
+use nalgebra::{Isometry3, Translation3};
+use rapier3d::geometry::SharedShape;
+use rapier3d::parry::bounding_volume::BoundingVolume;
+use rapier3d::parry::query;
+
+use super::JointTrajectory;
+use crate::kinematics::{ArmModel, DOF, JointVector, link_frames};
+use crate::math::pose_to_physics;
+
+/// What a robot shape moves with.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum LinkMount {
+    /// Rigid with DH frame `k` (0 is the fixed base, 6 the flange).
+    Dh(usize),
+    /// A finger: rigid with the flange, moved along the gripper's x axis by `sign` times the
+    /// finger offset from its reference position.
+    Finger {
+        /// +1 for the finger that opens along +x, -1 for the other.
+        sign: f64,
+    },
+}
+
+/// One collision shape of the robot.
+#[derive(Debug, Clone)]
+pub struct RobotShape {
+    /// Link name, for reports.
+    pub link: String,
+    /// What it moves with.
+    pub mount: LinkMount,
+    /// Pose of the shape in its mount frame (for fingers, at the reference finger offset).
+    pub mount_from_shape: Isometry3<f64>,
+    /// The shape.
+    pub shape: SharedShape,
+}
+
+/// A static obstacle of the cell.
+#[derive(Debug, Clone)]
+pub struct Obstacle {
+    /// Name, for reports.
+    pub name: String,
+    /// Pose in the robot's base frame.
+    pub base_from_shape: Isometry3<f64>,
+    /// The shape.
+    pub shape: SharedShape,
+}
+
+/// A body carried in the gripper, fixed to the TCP.
+#[derive(Debug, Clone)]
+pub struct Carried {
+    /// Pose of the body's shape in the TCP frame.
+    pub tcp_from_shape: Isometry3<f64>,
+    /// The shape.
+    pub shape: SharedShape,
+}
+
+/// The first collision found along a motion.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CollisionHit {
+    /// The robot link (or `carried part`).
+    pub link: String,
+    /// The obstacle.
+    pub obstacle: String,
+    /// Time along the trajectory, s.
+    pub time_s: f64,
+}
+
+/// Checks arm configurations and trajectories against static obstacles with a clearance margin.
+#[derive(Debug, Clone)]
+pub struct CollisionChecker {
+    model: ArmModel,
+    robot: Vec<RobotShape>,
+    obstacles: Vec<Obstacle>,
+    finger_reference_m: f64,
+    margin_m: f64,
+    /// Largest joint step between checked configurations, rad.
+    resolution_rad: f64,
+}
+
+impl CollisionChecker {
+    /// A checker for the arm `model` (with its TCP) whose shapes are `robot`, fingers modelled at
+    /// `finger_reference_m`, against `obstacles` in the base frame.
+    pub fn new(
+        model: ArmModel,
+        robot: Vec<RobotShape>,
+        finger_reference_m: f64,
+        obstacles: Vec<Obstacle>,
+        margin_m: f64,
+    ) -> Self {
+        Self {
+            model,
+            robot,
+            obstacles,
+            finger_reference_m,
+            margin_m,
+            resolution_rad: 0.03,
+        }
+    }
+
+    /// The obstacles checked against.
+    pub fn obstacles(&self) -> &[Obstacle] {
+        &self.obstacles
+    }
+
+    /// Adds an obstacle (the bottle once perception has seen it, say).
+    pub fn add_obstacle(&mut self, obstacle: Obstacle) {
+        self.obstacles.push(obstacle);
+    }
+
+    /// The first robot shape within the margin of an obstacle at configuration `q`, skipping
+    /// obstacles whose names are in `ignore`.
+    pub fn check_configuration(
+        &self,
+        q: &JointVector,
+        finger_offset_m: f64,
+        carried: Option<&Carried>,
+        ignore: &[&str],
+    ) -> Option<(String, String)> {
+        let frames = link_frames(&self.model, q);
+        let flange = frames[DOF];
+        let tcp = flange * self.model.flange_from_tcp;
+        let mut placed: Vec<(&str, Isometry3<f64>, &SharedShape)> = self
+            .robot
+            .iter()
+            .map(|shape| {
+                let mount = match shape.mount {
+                    LinkMount::Dh(k) => frames[k.min(DOF)],
+                    LinkMount::Finger { sign } => {
+                        let shift = sign * (finger_offset_m - self.finger_reference_m);
+                        flange * Translation3::new(shift, 0.0, 0.0)
+                    }
+                };
+                (shape.link.as_str(), mount * shape.mount_from_shape, &shape.shape)
+            })
+            .collect();
+        if let Some(carried) = carried {
+            placed.push(("carried part", tcp * carried.tcp_from_shape, &carried.shape));
+        }
+        for (link, pose, shape) in placed {
+            let pose = pose_to_physics(&pose);
+            let aabb = shape.compute_aabb(&pose).loosened(self.margin_m as f32);
+            for obstacle in &self.obstacles {
+                if ignore.contains(&obstacle.name.as_str()) {
+                    continue;
+                }
+                let obstacle_pose = pose_to_physics(&obstacle.base_from_shape);
+                if !aabb.intersects(&obstacle.shape.compute_aabb(&obstacle_pose)) {
+                    continue;
+                }
+                let close = match query::distance(&pose, shape.as_ref(), &obstacle_pose, obstacle.shape.as_ref()) {
+                    Ok(d) => d.distance < self.margin_m as f32,
+                    // Pairs parry cannot measure fall back to an overlap test.
+                    Err(_) => query::intersection_test(
+                        &pose,
+                        shape.as_ref(),
+                        &obstacle_pose,
+                        obstacle.shape.as_ref(),
+                    )
+                    .map(|hit| hit.intersecting)
+                    .unwrap_or(true),
+                };
+                if close {
+                    return Some((link.to_string(), obstacle.name.clone()));
+                }
+            }
+        }
+        None
+    }
+
+    /// The first collision along `trajectory`, sampled finely enough that no joint moves more
+    /// than the checker's resolution between samples.
+    pub fn check_trajectory(
+        &self,
+        trajectory: &JointTrajectory,
+        finger_offset_m: f64,
+        carried: Option<&Carried>,
+        ignore: &[&str],
+    ) -> Option<CollisionHit> {
+        let duration = trajectory.duration_s();
+        let start = trajectory.sample(0.0)?.q;
+        let end = trajectory.end()?;
+        let span: f64 = start
+            .iter()
+            .zip(&end)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        // Waypoints can make the path longer than start-to-end; sample by duration too.
+        let samples = ((span / self.resolution_rad).ceil() as usize).max((duration / 0.05).ceil() as usize).max(1);
+        for i in 0..=samples {
+            let t = duration * i as f64 / samples as f64;
+            let sample = trajectory.sample(t)?;
+            if let Some((link, obstacle)) = self.check_configuration(&sample.q, finger_offset_m, carried, ignore) {
+                return Some(CollisionHit {
+                    link,
+                    obstacle,
+                    time_s: t,
+                });
+            }
+        }
+        None
+    }
+}

@@ -1,0 +1,312 @@
+//! Scenario files: the cell's dimensions, part table, bins and trial settings, from TOML.
+//!
+//! Every field is validated on load; an error names the file, the key and the reason.
+
+mod validate;
+
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+pub use validate::ScenarioError;
+
+/// A whole scenario.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Scenario {
+    /// Scenario name, used in reports.
+    pub name: String,
+    /// Scenario seed; each trial's seed derives from it and the trial index.
+    pub seed: u64,
+    /// Number of trials.
+    pub trials: u32,
+    /// Parts on the belt per trial (1 for the paper's experiment).
+    #[serde(default = "one")]
+    pub parts_per_trial: u32,
+    /// Roundness tolerance: parts whose bore is out of round by more go to the reject bin, mm.
+    pub roundness_tolerance_mm: f64,
+    /// Physics settings.
+    #[serde(default)]
+    pub physics: PhysicsSection,
+    /// The arm and its pedestal.
+    #[serde(default)]
+    pub robot: RobotSection,
+    /// The gripper.
+    #[serde(default)]
+    pub gripper: GripperSection,
+    /// The conveyor.
+    #[serde(default)]
+    pub conveyor: ConveyorSection,
+    /// The part table: at least six types.
+    pub part_types: Vec<PartType>,
+    /// How part instances are drawn.
+    #[serde(default)]
+    pub parts: PartsSection,
+    /// The plastic-bottle distractor.
+    #[serde(default)]
+    pub bottle: BottleSection,
+    /// The bins: one per accepted type group, and one reject bin.
+    pub bins: Vec<Bin>,
+    /// Time-outs and tolerances of the task controller.
+    #[serde(default)]
+    pub task: TaskSection,
+}
+
+fn one() -> u32 {
+    1
+}
+
+/// Physics settings.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct PhysicsSection {
+    /// Fixed time step, s.
+    pub dt_s: f64,
+    /// Solver iterations per step.
+    pub solver_iterations: usize,
+}
+
+impl Default for PhysicsSection {
+    fn default() -> Self {
+        Self {
+            dt_s: 1.0 / 240.0,
+            solver_iterations: 8,
+        }
+    }
+}
+
+/// The arm on its pedestal.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct RobotSection {
+    /// Pedestal top (the arm's base_link) in the world, m.
+    pub base_xyz_m: [f64; 3],
+    /// Pedestal footprint (square side), m.
+    pub pedestal_side_m: f64,
+    /// Home joint angles, rad.
+    pub home_q_rad: [f64; 6],
+    /// Fraction of the joint speed and acceleration limits used for free motion.
+    pub speed_fraction: f64,
+    /// Optional URDF path (relative to the scenario file); the built-in arm when absent.
+    pub urdf: Option<PathBuf>,
+}
+
+impl Default for RobotSection {
+    fn default() -> Self {
+        Self {
+            base_xyz_m: [0.0, 0.0, 0.6],
+            pedestal_side_m: 0.3,
+            home_q_rad: [-1.5708, -0.26, 1.74, 0.43, 1.5708, 0.0],
+            speed_fraction: 0.6,
+            urdf: None,
+        }
+    }
+}
+
+/// The parallel gripper.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct GripperSection {
+    /// Force each finger presses with, N.
+    pub grip_force_n: f64,
+    /// Friction coefficient of the finger pads.
+    pub pad_friction: f64,
+    /// Clearance between an open finger and the part's outer surface, m.
+    pub open_clearance_m: f64,
+}
+
+impl Default for GripperSection {
+    fn default() -> Self {
+        Self {
+            grip_force_n: 40.0,
+            pad_friction: 0.9,
+            open_clearance_m: 0.012,
+        }
+    }
+}
+
+/// The belt conveyor: runs along +x of the world.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ConveyorSection {
+    /// Centre of the belt's top surface, m.
+    pub belt_center_m: [f64; 3],
+    /// Belt length along x, m.
+    pub length_m: f64,
+    /// Belt width along y, m.
+    pub width_m: f64,
+    /// Belt surface speed, m/s.
+    pub speed_m_s: f64,
+    /// x of the photo-eye beam (the pick station), m.
+    pub photo_eye_x_m: f64,
+    /// How far upstream of the photo-eye parts are placed, m.
+    pub spawn_upstream_m: f64,
+    /// Belt friction coefficient.
+    pub friction: f64,
+}
+
+impl Default for ConveyorSection {
+    fn default() -> Self {
+        Self {
+            belt_center_m: [0.0, -0.45, 0.70],
+            length_m: 1.6,
+            width_m: 0.32,
+            speed_m_s: 0.25,
+            photo_eye_x_m: 0.05,
+            spawn_upstream_m: 0.3,
+            friction: 0.8,
+        }
+    }
+}
+
+/// One axle-part type: a steel tube standing upright.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PartType {
+    /// Type name.
+    pub name: String,
+    /// Nominal bore diameter, mm.
+    pub bore_diameter_mm: f64,
+    /// Outer diameter, mm.
+    pub outer_diameter_mm: f64,
+    /// Height, mm.
+    pub height_mm: f64,
+    /// Material density, kg/m^3 (steel by default).
+    #[serde(default = "steel")]
+    pub density_kg_m3: f64,
+}
+
+fn steel() -> f64 {
+    7850.0
+}
+
+/// How part instances are drawn.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct PartsSection {
+    /// Largest true out-of-roundness drawn, mm (uniform in [0, max]).
+    pub max_roundness_mm: f64,
+    /// Largest lateral offset of a part from the belt's centre line, m.
+    pub max_lateral_offset_m: f64,
+}
+
+impl Default for PartsSection {
+    fn default() -> Self {
+        Self {
+            max_roundness_mm: 1.0,
+            max_lateral_offset_m: 0.06,
+        }
+    }
+}
+
+/// The plastic bottle.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct BottleSection {
+    /// Whether a bottle is placed at all.
+    pub enabled: bool,
+    /// Body radius, m.
+    pub radius_m: f64,
+    /// Total height, m.
+    pub height_m: f64,
+    /// Mass, kg.
+    pub mass_kg: f64,
+    /// Nearest and farthest centre distance from the part, m.
+    pub distance_range_m: [f64; 2],
+    /// Share of trials where the bottle lies on its side.
+    pub lying_fraction: f64,
+}
+
+impl Default for BottleSection {
+    fn default() -> Self {
+        Self {
+            enabled: true,
+            radius_m: 0.033,
+            height_m: 0.20,
+            mass_kg: 0.03,
+            distance_range_m: [0.10, 0.16],
+            lying_fraction: 0.0,
+        }
+    }
+}
+
+/// A bin standing on a table beside the arm.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Bin {
+    /// Bin name.
+    pub name: String,
+    /// Centre of the bin's floor, m.
+    pub floor_center_m: [f64; 3],
+    /// Inside size along x and y, m.
+    pub size_m: [f64; 2],
+    /// Wall height above the floor, m.
+    #[serde(default = "wall_height")]
+    pub wall_height_m: f64,
+    /// Part types this bin accepts (empty for the reject bin).
+    #[serde(default)]
+    pub accepts: Vec<String>,
+    /// Whether this is the reject bin.
+    #[serde(default)]
+    pub reject: bool,
+}
+
+fn wall_height() -> f64 {
+    0.08
+}
+
+/// Time-outs and tolerances of the task controller.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct TaskSection {
+    /// Longest wait for a part at the photo-eye, s.
+    pub wait_timeout_s: f64,
+    /// Longest time for the whole trial, s.
+    pub trial_timeout_s: f64,
+    /// Part movement relative to the fingers that counts as a slip, m.
+    pub slip_tolerance_m: f64,
+    /// Bottle displacement that counts as disturbing it, m.
+    pub bottle_tolerance_m: f64,
+}
+
+impl Default for TaskSection {
+    fn default() -> Self {
+        Self {
+            wait_timeout_s: 6.0,
+            trial_timeout_s: 30.0,
+            slip_tolerance_m: 0.01,
+            bottle_tolerance_m: 0.01,
+        }
+    }
+}
+
+impl Scenario {
+    /// Reads and validates a scenario file.
+    pub fn load(path: &Path) -> Result<Self, ScenarioError> {
+        let text = std::fs::read_to_string(path).map_err(|e| ScenarioError {
+            file: path.to_path_buf(),
+            key: String::new(),
+            reason: format!("cannot read: {e}"),
+        })?;
+        Self::from_toml(&text, path)
+    }
+
+    /// Parses and validates scenario TOML; `path` names the source in errors.
+    pub fn from_toml(text: &str, path: &Path) -> Result<Self, ScenarioError> {
+        let scenario: Scenario = toml::from_str(text).map_err(|e| ScenarioError::from_toml(path, text, &e))?;
+        scenario.validate(path)?;
+        Ok(scenario)
+    }
+
+    /// The bin a part of type `part_type` goes to when accepted.
+    pub fn accept_bin(&self, part_type: &str) -> Option<&Bin> {
+        self.bins
+            .iter()
+            .find(|b| !b.reject && b.accepts.iter().any(|t| t == part_type))
+    }
+
+    /// The reject bin.
+    pub fn reject_bin(&self) -> Option<&Bin> {
+        self.bins.iter().find(|b| b.reject)
+    }
+}

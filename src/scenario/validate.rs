@@ -1,0 +1,288 @@
+//! Scenario validation: every check names the file, the key and the reason.
+
+use std::collections::BTreeSet;
+use std::path::{Path, PathBuf};
+
+use nalgebra::{Isometry3, Translation3, UnitQuaternion};
+
+use super::Scenario;
+use crate::kinematics::{AnalyticIk, ArmModel, IkSolver};
+
+/// The widest the gripper opens: twice the finger stroke, m.
+pub const MAX_GRIPPER_OPENING_M: f64 = 0.10;
+/// The most force a finger motor can give, N.
+pub const MAX_FINGER_FORCE_N: f64 = 60.0;
+
+/// A scenario file that cannot be used.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{}: {key}: {reason}", file.display())]
+pub struct ScenarioError {
+    /// The scenario file.
+    pub file: PathBuf,
+    /// The offending key, dotted (`bins[2].size_m`).
+    pub key: String,
+    /// What is wrong.
+    pub reason: String,
+}
+
+impl ScenarioError {
+    /// Wraps a TOML parse error, naming the key at the error's location.
+    pub(super) fn from_toml(file: &Path, text: &str, error: &toml::de::Error) -> Self {
+        let key = error
+            .span()
+            .and_then(|span| text.get(span))
+            .map(|s| s.trim().trim_matches('"').to_string())
+            .unwrap_or_default();
+        let line = error
+            .span()
+            .map(|span| text[..span.start.min(text.len())].lines().count().max(1));
+        let reason = match line {
+            Some(line) => format!("{} (line {line})", error.message()),
+            None => error.message().to_string(),
+        };
+        Self {
+            file: file.to_path_buf(),
+            key,
+            reason,
+        }
+    }
+}
+
+struct Checker<'a> {
+    file: &'a Path,
+}
+
+impl Checker<'_> {
+    fn fail(&self, key: impl Into<String>, reason: impl Into<String>) -> ScenarioError {
+        ScenarioError {
+            file: self.file.to_path_buf(),
+            key: key.into(),
+            reason: reason.into(),
+        }
+    }
+
+    fn positive(&self, key: &str, value: f64) -> Result<(), ScenarioError> {
+        if value.is_finite() && value > 0.0 {
+            Ok(())
+        } else {
+            Err(self.fail(key, format!("must be a positive number, got {value}")))
+        }
+    }
+
+    fn in_range(&self, key: &str, value: f64, low: f64, high: f64) -> Result<(), ScenarioError> {
+        if value.is_finite() && (low..=high).contains(&value) {
+            Ok(())
+        } else {
+            Err(self.fail(key, format!("must lie in [{low}, {high}], got {value}")))
+        }
+    }
+
+    fn finite(&self, key: &str, values: &[f64]) -> Result<(), ScenarioError> {
+        if values.iter().all(|v| v.is_finite()) {
+            Ok(())
+        } else {
+            Err(self.fail(key, "must be finite numbers"))
+        }
+    }
+}
+
+impl Scenario {
+    /// Checks every value; the first problem found is returned.
+    pub fn validate(&self, file: &Path) -> Result<(), ScenarioError> {
+        let c = Checker { file };
+        if self.name.trim().is_empty() {
+            return Err(c.fail("name", "must not be empty"));
+        }
+        if self.trials == 0 {
+            return Err(c.fail("trials", "must be at least 1"));
+        }
+        if self.parts_per_trial != 1 {
+            return Err(c.fail("parts_per_trial", "only 1 part per trial is supported"));
+        }
+        c.positive("roundness_tolerance_mm", self.roundness_tolerance_mm)?;
+        c.in_range("physics.dt_s", self.physics.dt_s, 1e-4, 0.02)?;
+        if !(1..=64).contains(&self.physics.solver_iterations) {
+            return Err(c.fail("physics.solver_iterations", "must lie in [1, 64]"));
+        }
+        self.validate_robot(&c)?;
+        self.validate_conveyor(&c)?;
+        self.validate_parts(&c)?;
+        self.validate_bottle(&c)?;
+        self.validate_bins(&c)?;
+        let task = &self.task;
+        c.positive("task.wait_timeout_s", task.wait_timeout_s)?;
+        c.positive("task.trial_timeout_s", task.trial_timeout_s)?;
+        c.positive("task.slip_tolerance_m", task.slip_tolerance_m)?;
+        c.positive("task.bottle_tolerance_m", task.bottle_tolerance_m)?;
+        Ok(())
+    }
+
+    fn validate_robot(&self, c: &Checker) -> Result<(), ScenarioError> {
+        let robot = &self.robot;
+        c.finite("robot.base_xyz_m", &robot.base_xyz_m)?;
+        c.positive("robot.pedestal_side_m", robot.pedestal_side_m)?;
+        c.positive("robot.base_xyz_m[2]", robot.base_xyz_m[2])?;
+        c.in_range("robot.speed_fraction", robot.speed_fraction, 0.01, 1.0)?;
+        let arm = ArmModel::aubo_i5();
+        if let Err(e) = arm.check_limits(&robot.home_q_rad) {
+            return Err(c.fail("robot.home_q_rad", e.to_string()));
+        }
+        let gripper = &self.gripper;
+        c.in_range("gripper.grip_force_n", gripper.grip_force_n, 0.0, MAX_FINGER_FORCE_N)?;
+        c.positive("gripper.grip_force_n", gripper.grip_force_n)?;
+        c.positive("gripper.pad_friction", gripper.pad_friction)?;
+        c.in_range("gripper.open_clearance_m", gripper.open_clearance_m, 0.0, 0.05)?;
+        Ok(())
+    }
+
+    fn validate_conveyor(&self, c: &Checker) -> Result<(), ScenarioError> {
+        let belt = &self.conveyor;
+        c.finite("conveyor.belt_center_m", &belt.belt_center_m)?;
+        c.positive("conveyor.length_m", belt.length_m)?;
+        c.positive("conveyor.width_m", belt.width_m)?;
+        c.positive("conveyor.speed_m_s", belt.speed_m_s)?;
+        c.positive("conveyor.friction", belt.friction)?;
+        c.positive("conveyor.spawn_upstream_m", belt.spawn_upstream_m)?;
+        let half = belt.length_m / 2.0;
+        let (start, end) = (belt.belt_center_m[0] - half, belt.belt_center_m[0] + half);
+        c.in_range("conveyor.photo_eye_x_m", belt.photo_eye_x_m, start, end)?;
+        if belt.photo_eye_x_m - belt.spawn_upstream_m < start {
+            return Err(c.fail(
+                "conveyor.spawn_upstream_m",
+                "puts the spawn point off the upstream end of the belt",
+            ));
+        }
+        if belt.belt_center_m[2] <= 0.0 {
+            return Err(c.fail("conveyor.belt_center_m[2]", "belt must be above the floor"));
+        }
+        Ok(())
+    }
+
+    fn validate_parts(&self, c: &Checker) -> Result<(), ScenarioError> {
+        if self.part_types.len() < 6 {
+            return Err(c.fail(
+                "part_types",
+                format!("needs at least 6 types, got {}", self.part_types.len()),
+            ));
+        }
+        let mut names = BTreeSet::new();
+        for (i, part) in self.part_types.iter().enumerate() {
+            let key = |field: &str| format!("part_types[{i}].{field}");
+            if part.name.trim().is_empty() || !names.insert(part.name.as_str()) {
+                return Err(c.fail(key("name"), "must be a unique, non-empty name"));
+            }
+            c.positive(&key("bore_diameter_mm"), part.bore_diameter_mm)?;
+            c.positive(&key("outer_diameter_mm"), part.outer_diameter_mm)?;
+            c.positive(&key("density_kg_m3"), part.density_kg_m3)?;
+            c.in_range(&key("height_mm"), part.height_mm, 40.0, 200.0)?;
+            if part.bore_diameter_mm + 2.0 * self.parts.max_roundness_mm + 4.0 >= part.outer_diameter_mm {
+                return Err(c.fail(
+                    key("bore_diameter_mm"),
+                    "leaves a wall under 2 mm around the bore",
+                ));
+            }
+            let opening = part.outer_diameter_mm / 1000.0 + 2.0 * self.gripper.open_clearance_m;
+            if opening > MAX_GRIPPER_OPENING_M {
+                return Err(c.fail(
+                    key("outer_diameter_mm"),
+                    format!(
+                        "needs a gripper opening of {:.0} mm, wider than its {:.0} mm",
+                        opening * 1000.0,
+                        MAX_GRIPPER_OPENING_M * 1000.0
+                    ),
+                ));
+            }
+            let max_offset = self.conveyor.width_m / 2.0 - part.outer_diameter_mm / 2000.0;
+            if self.parts.max_lateral_offset_m > max_offset {
+                return Err(c.fail(
+                    "parts.max_lateral_offset_m",
+                    format!("lets part `{}` overhang the belt edge", part.name),
+                ));
+            }
+        }
+        c.in_range("parts.max_roundness_mm", self.parts.max_roundness_mm, 0.0, 5.0)?;
+        c.in_range("parts.max_lateral_offset_m", self.parts.max_lateral_offset_m, 0.0, 1.0)?;
+        Ok(())
+    }
+
+    fn validate_bottle(&self, c: &Checker) -> Result<(), ScenarioError> {
+        let bottle = &self.bottle;
+        c.positive("bottle.radius_m", bottle.radius_m)?;
+        c.positive("bottle.height_m", bottle.height_m)?;
+        c.positive("bottle.mass_kg", bottle.mass_kg)?;
+        c.in_range("bottle.lying_fraction", bottle.lying_fraction, 0.0, 1.0)?;
+        let [near, far] = bottle.distance_range_m;
+        if !(near.is_finite() && far.is_finite() && 0.0 < near && near <= far) {
+            return Err(c.fail(
+                "bottle.distance_range_m",
+                "must be [near, far] with 0 < near <= far",
+            ));
+        }
+        Ok(())
+    }
+
+    fn validate_bins(&self, c: &Checker) -> Result<(), ScenarioError> {
+        let mut names = BTreeSet::new();
+        let known: BTreeSet<&str> = self.part_types.iter().map(|p| p.name.as_str()).collect();
+        let rejects = self.bins.iter().filter(|b| b.reject).count();
+        if rejects != 1 {
+            return Err(c.fail("bins", format!("needs exactly one reject bin, got {rejects}")));
+        }
+        let arm = ArmModel::aubo_i5().with_tool(crate::cell::gripper_tcp());
+        let Ok(ik) = AnalyticIk::new(arm) else {
+            return Err(c.fail("robot", "arm geometry unsupported"));
+        };
+        let tallest_m = self
+            .part_types
+            .iter()
+            .map(|p| p.height_mm / 1000.0)
+            .fold(0.0, f64::max);
+        for (i, bin) in self.bins.iter().enumerate() {
+            let key = |field: &str| format!("bins[{i}].{field}");
+            if bin.name.trim().is_empty() || !names.insert(bin.name.as_str()) {
+                return Err(c.fail(key("name"), "must be a unique, non-empty name"));
+            }
+            c.finite(&key("floor_center_m"), &bin.floor_center_m)?;
+            c.positive(&key("size_m[0]"), bin.size_m[0])?;
+            c.positive(&key("size_m[1]"), bin.size_m[1])?;
+            c.positive(&key("wall_height_m"), bin.wall_height_m)?;
+            if bin.reject && !bin.accepts.is_empty() {
+                return Err(c.fail(key("accepts"), "the reject bin accepts no type"));
+            }
+            if let Some(unknown) = bin.accepts.iter().find(|t| !known.contains(t.as_str())) {
+                return Err(c.fail(key("accepts"), format!("names unknown part type `{unknown}`")));
+            }
+            // The place pose: gripper pointing down, the tallest part's bottom 2 cm above the rim.
+            let base = self.robot.base_xyz_m;
+            let tcp_z = bin.floor_center_m[2] + bin.wall_height_m + 0.02 + tallest_m;
+            let place = Isometry3::from_parts(
+                Translation3::new(
+                    bin.floor_center_m[0] - base[0],
+                    bin.floor_center_m[1] - base[1],
+                    tcp_z - base[2],
+                ),
+                UnitQuaternion::from_euler_angles(std::f64::consts::PI, 0.0, 0.0),
+            );
+            if ik.solve(&place).is_empty() {
+                return Err(c.fail(
+                    key("floor_center_m"),
+                    "bin is out of the arm's reach (no IK solution for placing a part in it)",
+                ));
+            }
+        }
+        for part in &self.part_types {
+            let count = self
+                .bins
+                .iter()
+                .filter(|b| b.accepts.contains(&part.name))
+                .count();
+            if count != 1 {
+                return Err(c.fail(
+                    "bins",
+                    format!("part type `{}` must be accepted by exactly one bin, found {count}", part.name),
+                ));
+            }
+        }
+        Ok(())
+    }
+}
