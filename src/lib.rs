@@ -1,1 +1,3 @@
 //! twincell: a physics-simulated digital twin of a robot sorting cell.
+
+pub mod perception;
