@@ -15,7 +15,10 @@ struct Cli {
 }
 
 #[derive(Debug, Subcommand)]
-enum Command {}
+enum Command {
+    /// Measure every bore (dark bore inside a bright rim) in images.
+    Measure(cli::measure::MeasureArgs),
+}
 
 fn main() -> ExitCode {
     tracing_subscriber::fmt()
@@ -26,7 +29,9 @@ fn main() -> ExitCode {
         .with_writer(std::io::stderr)
         .init();
     let cli = Cli::parse();
-    let result: anyhow::Result<ExitCode> = match cli.command {};
+    let result: anyhow::Result<ExitCode> = match cli.command {
+        Command::Measure(args) => cli::measure::run(&args),
+    };
     match result {
         Ok(code) => code,
         Err(err) => {
