@@ -137,3 +137,77 @@ fn heavy_noise_salt_and_pepper_vignetting_stains_and_bottles() {
 fn large_frames() {
     assert_accuracy(&run(Difficulty::Moderate, 300..310, 1280, 960));
 }
+
+#[test]
+fn bottles_are_never_bores_even_when_they_look_like_a_dark_disc_in_a_bright_ring() {
+    use twincell::perception::contours::{BorderKind, find_contours};
+    use twincell::perception::synthetic::{Bottle, Illumination, Noise, Scene};
+    let detector = BoreDetector::default();
+    let mut bottle_holes = 0;
+    for seed in 0..20u64 {
+        let mut scene = random_scene(500 + seed, 640, 480, Difficulty::Moderate);
+        let f = seed as f64;
+        // Dark caps (40-90) inside translucent bodies, and lying capsules with dark caps.
+        scene.bottles = vec![
+            Bottle::Standing {
+                centre_px: [90.0, 90.0],
+                body_radius_px: 60.0 + f,
+                cap_radius_px: 20.0 + 0.3 * f,
+                cap_level: 40.0 + 2.5 * f,
+            },
+            Bottle::Lying {
+                centre_px: [540.0, 380.0],
+                length_px: 180.0,
+                width_px: 60.0,
+                angle_rad: 0.1 * f,
+                cap_level: 40.0 + 2.5 * f,
+            },
+        ];
+        scene.tubes.retain(|t| {
+            let clear = |c: [f64; 2], r: f64| {
+                (t.centre_px[0] - c[0]).hypot(t.centre_px[1] - c[1]) > t.outer_radius_px + r
+            };
+            clear([90.0, 90.0], 90.0) && clear([540.0, 380.0], 110.0)
+        });
+        scene.illumination = Illumination {
+            gradient_x: 0.3,
+            gradient_y: -0.2,
+            vignetting: 0.2,
+        };
+        scene.noise = Noise {
+            sigma: 6.0,
+            salt_pepper: 0.01,
+        };
+        let image = scene.render();
+        let truth = scene.truth();
+        // The bottles do reach the geometric tests: their caps leave hole borders.
+        let binary = detector
+            .params
+            .threshold
+            .apply(&detector.params.filter.apply(&image));
+        bottle_holes += find_contours(&binary)
+            .iter()
+            .filter(|c| c.kind == BorderKind::Hole && c.points_px.len() > 40)
+            .filter(|c| {
+                let [x, y] = c.points_px[0];
+                (f64::from(x) - 90.0).hypot(f64::from(y) - 90.0) < 90.0
+                    || (f64::from(x) - 540.0).hypot(f64::from(y) - 380.0) < 110.0
+            })
+            .count();
+        let bores = detector
+            .detect(&image)
+            .unwrap_or_else(|e| panic!("seed {seed}: {e}"));
+        for b in &bores {
+            assert!(
+                truth.iter().any(|t| matches(b, t)),
+                "seed {seed}: reported a bore at ({:.1}, {:.1}) r {:.1}",
+                b.centre_px[0],
+                b.centre_px[1],
+                b.radius_px
+            );
+        }
+        assert_eq!(bores.len(), truth.len(), "seed {seed}: every tube found");
+    }
+    eprintln!("bottle hole borders that reached the geometric tests: {bottle_holes}");
+    assert!(bottle_holes > 0);
+}

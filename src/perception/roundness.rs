@@ -94,43 +94,60 @@ pub fn filtered_roundness(
             0.5 * if span <= 0.0 { span + TAU } else { span }
         })
         .collect();
-    let mut profile = RoundnessProfile {
-        mean_radius: polar.iter().map(|p| p.1).sum::<f64>() / n as f64,
-        harmonics: vec![(0.0, 0.0); k_max],
-        roundness: 0.0,
-        residual_rms: 0.0,
-        point_count: n,
+    // cos(k theta_i), sin(k theta_i) for k = 1..=K, row by row.
+    let mut basis = vec![(0.0f64, 0.0f64); n * k_max];
+    for (row, &(theta, _)) in basis.chunks_exact_mut(k_max.max(1)).zip(&polar) {
+        let (s1, c1) = theta.sin_cos();
+        let (mut c, mut s) = (c1, s1);
+        for cell in row.iter_mut() {
+            *cell = (c, s);
+            let c_next = c * c1 - s * s1;
+            s = s * c1 + c * s1;
+            c = c_next;
+        }
+    }
+    let series_at = |mean: f64, harmonics: &[(f64, f64)], i: usize| -> f64 {
+        let row = &basis[i * k_max..(i + 1) * k_max];
+        mean + row
+            .iter()
+            .zip(harmonics)
+            .map(|(&(c, s), &(a, b))| a * c + b * s)
+            .sum::<f64>()
     };
+    let mut mean_radius = polar.iter().map(|p| p.1).sum::<f64>() / n as f64;
+    let mut harmonics = vec![(0.0f64, 0.0f64); k_max];
     // Quadrature of what the series does not yet explain, repeated: on uneven spacing one pass
     // leaks a little of each harmonic into the others; three passes converge to the least-squares
     // series for spacing as even as the detector's rays.
     for _ in 0..3 {
-        let mut sums = vec![(0.0f64, 0.0f64); k_max + 1];
-        for (&(theta, r), &weight) in polar.iter().zip(&weights) {
-            let residual = weight * (r - profile.radius_at(theta));
-            let (s1, c1) = theta.sin_cos();
-            let (mut c, mut s) = (1.0f64, 0.0f64);
-            for sum in sums.iter_mut() {
+        let mut constant = 0.0;
+        let mut sums = vec![(0.0f64, 0.0f64); k_max];
+        for (i, (&(_, r), &weight)) in polar.iter().zip(&weights).enumerate() {
+            let residual = weight * (r - series_at(mean_radius, &harmonics, i));
+            constant += residual;
+            for (sum, &(c, s)) in sums.iter_mut().zip(&basis[i * k_max..(i + 1) * k_max]) {
                 sum.0 += residual * c;
                 sum.1 += residual * s;
-                let c_next = c * c1 - s * s1;
-                s = s * c1 + c * s1;
-                c = c_next;
             }
         }
-        profile.mean_radius += sums[0].0 / TAU;
-        for (h, &(a, b)) in profile.harmonics.iter_mut().zip(&sums[1..]) {
+        mean_radius += constant / TAU;
+        for (h, &(a, b)) in harmonics.iter_mut().zip(&sums) {
             h.0 += a / std::f64::consts::PI;
             h.1 += b / std::f64::consts::PI;
         }
     }
-    let sum_sq: f64 = polar
-        .iter()
-        .map(|&(theta, r)| (r - profile.radius_at(theta)).powi(2))
+    let sum_sq: f64 = (0..n)
+        .map(|i| (polar[i].1 - series_at(mean_radius, &harmonics, i)).powi(2))
         .sum();
-    profile.residual_rms = (sum_sq / n as f64).sqrt();
-    // Dense enough that the sampled extremes of a K-UPR series are within 1e-4 of the true ones.
-    let samples = 64 * (k_max + 1);
+    let mut profile = RoundnessProfile {
+        mean_radius,
+        harmonics,
+        roundness: 0.0,
+        residual_rms: (sum_sq / n as f64).sqrt(),
+        point_count: n,
+    };
+    // Dense enough that the sampled extremes of a K-UPR series are within ~1e-3 of the true ones.
+    let samples = 32 * (k_max + 1);
     let (mut r_min, mut r_max) = (f64::INFINITY, f64::NEG_INFINITY);
     for j in 0..samples {
         let r = profile.radius_at(TAU * j as f64 / samples as f64);

@@ -14,7 +14,9 @@ use image::GrayImage;
 pub struct RayParams {
     /// Half length of the searched stretch around the coarse radius.
     pub search_half_px: f64,
-    /// Sample spacing along the ray.
+    /// Sample spacing of the search for the half-level crossing.
+    pub search_step_px: f64,
+    /// Sample spacing of the area integral.
     pub step_px: f64,
     /// Distance from the coarse edge to the near end of the level windows.
     pub level_near_px: f64,
@@ -30,6 +32,7 @@ impl Default for RayParams {
     fn default() -> Self {
         Self {
             search_half_px: 3.5,
+            search_step_px: 0.5,
             step_px: 0.25,
             level_near_px: 3.0,
             level_far_px: 6.0,
@@ -60,7 +63,8 @@ pub fn sample_bilinear(image: &GrayImage, x: f64, y: f64) -> f64 {
     let (w, h) = (image.width() as usize, image.height() as usize);
     let x = x.clamp(0.0, (w - 1) as f64);
     let y = y.clamp(0.0, (h - 1) as f64);
-    let (x0, y0) = (x.floor() as usize, y.floor() as usize);
+    // Truncation is floor here (both are clamped to >= 0) and, unlike `floor`, needs no libm call.
+    let (x0, y0) = (x as usize, y as usize);
     let (x1, y1) = ((x0 + 1).min(w - 1), (y0 + 1).min(h - 1));
     let (fx, fy) = (x - x0 as f64, y - y0 as f64);
     let raw = image.as_raw();
@@ -133,14 +137,14 @@ pub fn locate_edge(
     let rho = coarse_radius_px;
     let at = |t: f64| sample_bilinear(image, centre[0] + t * c, centre[1] + t * s);
     let half = 0.5 * (inner_level + outer_level);
-    let steps = (2.0 * params.search_half_px / params.step_px).round() as usize;
+    let steps = (2.0 * params.search_half_px / params.search_step_px).round() as usize;
     let t0 = rho - params.search_half_px;
     let mut crossing: Option<f64> = None;
     let mut prev = at(t0);
     for i in 0..steps {
-        let next = at(t0 + params.step_px * (i + 1) as f64);
+        let next = at(t0 + params.search_step_px * (i + 1) as f64);
         if prev < half && next >= half {
-            let t = t0 + params.step_px * (i as f64 + (half - prev) / (next - prev));
+            let t = t0 + params.search_step_px * (i as f64 + (half - prev) / (next - prev));
             if crossing.is_none_or(|b| (t - rho).abs() < (b - rho).abs()) {
                 crossing = Some(t);
             }
