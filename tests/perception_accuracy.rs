@@ -141,7 +141,7 @@ fn large_frames() {
 #[test]
 fn bottles_are_never_bores_even_when_they_look_like_a_dark_disc_in_a_bright_ring() {
     use twincell::perception::contours::{BorderKind, find_contours};
-    use twincell::perception::synthetic::{Bottle, Illumination, Noise, Scene};
+    use twincell::perception::synthetic::{Bottle, Illumination, Noise};
     let detector = BoreDetector::default();
     let mut bottle_holes = 0;
     for seed in 0..20u64 {

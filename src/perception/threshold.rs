@@ -74,7 +74,8 @@ pub fn adaptive_mean_threshold(image: &GrayImage, block_radius_px: u32, delta: i
             *s += u32::from(p);
         }
     }
-    let mut prefix = vec![0u64; w + 1];
+    // Column sums reach 255 (2r+1), prefixes 255 (2r+1) w: u32 for any realistic frame.
+    let mut prefix = vec![0u32; w + 1];
     for y in 0..h {
         if y + r < h {
             let row = &src[(y + r) * w..(y + r + 1) * w];
@@ -92,13 +93,13 @@ pub fn adaptive_mean_threshold(image: &GrayImage, block_radius_px: u32, delta: i
         let y_high = (y + r).min(h - 1);
         let rows_in = (y_high - y_low + 1) as i64;
         for x in 0..w {
-            prefix[x + 1] = prefix[x] + u64::from(column_sums[x]);
+            prefix[x + 1] = prefix[x].wrapping_add(column_sums[x]);
         }
         let src_row = &src[y * w..(y + 1) * w];
         let out_row = &mut dst[y * w..(y + 1) * w];
         let decide = |x: usize, x_low: usize, x_high: usize| -> u8 {
             let count = rows_in * (x_high - x_low + 1) as i64;
-            let sum = (prefix[x_high + 1] - prefix[x_low]) as i64;
+            let sum = i64::from(prefix[x_high + 1].wrapping_sub(prefix[x_low]));
             // p >= floor(sum / count) - delta  <=>  (p + delta + 1) * count > sum.
             let k = i64::from(src_row[x]) + i64::from(delta) + 1;
             if k * count > sum { 255 } else { 0 }
@@ -109,12 +110,19 @@ pub fn adaptive_mean_threshold(image: &GrayImage, block_radius_px: u32, delta: i
             out_row[x] = decide(x, x.saturating_sub(r), (x + r).min(w - 1));
         }
         if inner_low < inner_high {
-            let count = rows_in * (2 * r + 1) as i64;
-            let offset = i64::from(delta) + 1;
-            for x in inner_low..inner_high {
-                let sum = (prefix[x + r + 1] - prefix[x - r]) as i64;
-                let k = i64::from(src_row[x]) + offset;
-                out_row[x] = if k * count > sum { 255 } else { 0 };
+            // Block sums stay below 2^31 for radii up to 1450, so i32 lanes suffice.
+            let count = (rows_in * (2 * r + 1) as i64) as i32;
+            let offset = delta.saturating_add(1);
+            let (high, low) = (&prefix[inner_low + r + 1..], &prefix[..inner_high - r]);
+            for (((o, &p), &hi), &lo) in out_row[inner_low..inner_high]
+                .iter_mut()
+                .zip(&src_row[inner_low..inner_high])
+                .zip(high)
+                .zip(low)
+            {
+                let sum = hi.wrapping_sub(lo) as i32;
+                let k = i32::from(p) + offset;
+                *o = if k.wrapping_mul(count) > sum { 255 } else { 0 };
             }
         }
     }
