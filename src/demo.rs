@@ -73,7 +73,6 @@ pub struct DemoReport {
     pub sim_time_s: f64,
 }
 
-
 /// A random TCP target that a gripper would use over a table: pointing down within 30 degrees,
 /// any yaw, 0.3-0.7 m from the base axis, 0.05-0.5 m above the base.
 fn random_target(rng: &mut SimRng) -> Isometry3<f64> {

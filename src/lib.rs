@@ -6,6 +6,7 @@ pub mod control;
 pub mod demo;
 pub mod kinematics;
 pub mod math;
+pub mod perception;
 pub mod planning;
 pub mod rng;
 pub mod scenario;

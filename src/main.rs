@@ -22,6 +22,8 @@ enum Command {
     Ik(cli::kinematics::IkArgs),
     /// Drive the simulated arm through random IK targets and report tracking errors.
     Demo(cli::demo::DemoArgs),
+    /// Measure every bore (dark bore inside a bright rim) in images.
+    Measure(cli::measure::MeasureArgs),
 }
 
 fn main() -> ExitCode {
@@ -37,6 +39,7 @@ fn main() -> ExitCode {
         Command::Fk(args) => cli::kinematics::run_fk(&args),
         Command::Ik(args) => cli::kinematics::run_ik(&args),
         Command::Demo(args) => cli::demo::run_demo(&args),
+        Command::Measure(args) => cli::measure::run(&args),
     };
     match result {
         Ok(code) => code,

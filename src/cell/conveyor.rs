@@ -48,7 +48,11 @@ impl PhysicsHooks for ConveyorHooks {
             return;
         }
         // The tangent velocity is that of body 2's surface relative to body 1's.
-        let sign = if context.collider1 == self.belt { -1.0 } else { 1.0 };
+        let sign = if context.collider1 == self.belt {
+            -1.0
+        } else {
+            1.0
+        };
         if let ModifiableContacts::Rigid(manifold) = &mut context.contacts {
             for contact in manifold.solver_contacts.iter_mut() {
                 contact.tangent_velocity = Vector::new(sign * speed, 0.0, 0.0);

@@ -60,7 +60,10 @@ impl BinBody {
     /// Whether a world point lies inside the bin (within its walls, below the rim).
     pub fn contains(&self, point: &Vector3<f64>) -> bool {
         let d = point - self.floor_center;
-        d.x.abs() <= self.size[0] / 2.0 && d.y.abs() <= self.size[1] / 2.0 && d.z >= -0.01 && d.z <= self.wall_height
+        d.x.abs() <= self.size[0] / 2.0
+            && d.y.abs() <= self.size[1] / 2.0
+            && d.z >= -0.01
+            && d.z <= self.wall_height
     }
 }
 
@@ -107,7 +110,15 @@ struct Builder<'a> {
 
 impl Builder<'_> {
     /// A fixed box with centre `center` and half extents `half`, tagged, optionally an obstacle.
-    fn fixed_box(&mut self, name: &str, center: [f64; 3], half: [f64; 3], tag: Tag, friction: f32, obstacle: bool) -> ColliderHandle {
+    fn fixed_box(
+        &mut self,
+        name: &str,
+        center: [f64; 3],
+        half: [f64; 3],
+        tag: Tag,
+        friction: f32,
+        obstacle: bool,
+    ) -> ColliderHandle {
         let pose = Isometry3::translation(center[0], center[1], center[2]);
         let shape = SharedShape::cuboid(half[0] as f32, half[1] as f32, half[2] as f32);
         let body = self
@@ -136,7 +147,11 @@ impl Builder<'_> {
 impl Cell {
     /// Builds the cell for one trial: the scenario's fixed layout plus a part and a bottle drawn
     /// from `rng`, the arm at home.
-    pub fn build(scenario: &Scenario, urdf: Option<&(PathBuf, String)>, rng: &mut SimRng) -> Result<Self, CellError> {
+    pub fn build(
+        scenario: &Scenario,
+        urdf: Option<&(PathBuf, String)>,
+        rng: &mut SimRng,
+    ) -> Result<Self, CellError> {
         let mut world = World::new(WorldParams {
             dt_s: scenario.physics.dt_s,
             gravity_m_s2: 9.81,
@@ -153,16 +168,34 @@ impl Cell {
             base_from_world: world_from_base.inverse(),
             obstacles: Vec::new(),
         };
-        builder.fixed_box("floor", [0.0, 0.0, -0.05], [3.0, 3.0, 0.05], Tag::Scenery, 0.8, true);
+        builder.fixed_box(
+            "floor",
+            [0.0, 0.0, -0.05],
+            [3.0, 3.0, 0.05],
+            Tag::Scenery,
+            0.8,
+            true,
+        );
         let side = scenario.robot.pedestal_side_m / 2.0;
-        builder.fixed_box("pedestal", [base[0], base[1], base[2] / 2.0], [side, side, base[2] / 2.0], Tag::Scenery, 0.8, true);
+        builder.fixed_box(
+            "pedestal",
+            [base[0], base[1], base[2] / 2.0],
+            [side, side, base[2] / 2.0],
+            Tag::Scenery,
+            0.8,
+            true,
+        );
 
         let belt = &scenario.conveyor;
         let belt_top_z = belt.belt_center_m[2];
         let thickness = 0.05;
         let belt_collider = builder.fixed_box(
             "conveyor",
-            [belt.belt_center_m[0], belt.belt_center_m[1], belt_top_z - thickness / 2.0],
+            [
+                belt.belt_center_m[0],
+                belt.belt_center_m[1],
+                belt_top_z - thickness / 2.0,
+            ],
             [belt.length_m / 2.0, belt.width_m / 2.0, thickness / 2.0],
             Tag::Belt,
             belt.friction as f32,
@@ -181,9 +214,17 @@ impl Cell {
             );
         }
         // The photo-eye's beam across the belt, 10-50 mm above it.
-        let eye_body = builder.world.physics.bodies.insert(RigidBodyBuilder::fixed().pose(pose_to_physics(
-            &Isometry3::translation(belt.photo_eye_x_m, belt.belt_center_m[1], belt_top_z + 0.03),
-        )));
+        let eye_body = builder
+            .world
+            .physics
+            .bodies
+            .insert(
+                RigidBodyBuilder::fixed().pose(pose_to_physics(&Isometry3::translation(
+                    belt.photo_eye_x_m,
+                    belt.belt_center_m[1],
+                    belt_top_z + 0.03,
+                ))),
+            );
         let physics = &mut builder.world.physics;
         let photo_eye = physics.colliders.insert_with_parent(
             ColliderBuilder::cuboid(0.002, belt.width_m as f32 / 2.0, 0.02)
@@ -202,15 +243,57 @@ impl Cell {
             let [sx, sy] = bin.size_m;
             let (wall, h) = (0.006, bin.wall_height_m);
             let name = format!("bin {}", bin.name);
-            builder.fixed_box(&name, [cx, cy, floor_z - wall / 2.0], [sx / 2.0 + wall, sy / 2.0 + wall, wall / 2.0], Tag::Bin, 0.6, true);
-            builder.fixed_box(&name, [cx - sx / 2.0 - wall / 2.0, cy, floor_z + h / 2.0], [wall / 2.0, sy / 2.0 + wall, h / 2.0], Tag::Bin, 0.6, true);
-            builder.fixed_box(&name, [cx + sx / 2.0 + wall / 2.0, cy, floor_z + h / 2.0], [wall / 2.0, sy / 2.0 + wall, h / 2.0], Tag::Bin, 0.6, true);
-            builder.fixed_box(&name, [cx, cy - sy / 2.0 - wall / 2.0, floor_z + h / 2.0], [sx / 2.0, wall / 2.0, h / 2.0], Tag::Bin, 0.6, true);
-            builder.fixed_box(&name, [cx, cy + sy / 2.0 + wall / 2.0, floor_z + h / 2.0], [sx / 2.0, wall / 2.0, h / 2.0], Tag::Bin, 0.6, true);
+            builder.fixed_box(
+                &name,
+                [cx, cy, floor_z - wall / 2.0],
+                [sx / 2.0 + wall, sy / 2.0 + wall, wall / 2.0],
+                Tag::Bin,
+                0.6,
+                true,
+            );
+            builder.fixed_box(
+                &name,
+                [cx - sx / 2.0 - wall / 2.0, cy, floor_z + h / 2.0],
+                [wall / 2.0, sy / 2.0 + wall, h / 2.0],
+                Tag::Bin,
+                0.6,
+                true,
+            );
+            builder.fixed_box(
+                &name,
+                [cx + sx / 2.0 + wall / 2.0, cy, floor_z + h / 2.0],
+                [wall / 2.0, sy / 2.0 + wall, h / 2.0],
+                Tag::Bin,
+                0.6,
+                true,
+            );
+            builder.fixed_box(
+                &name,
+                [cx, cy - sy / 2.0 - wall / 2.0, floor_z + h / 2.0],
+                [sx / 2.0, wall / 2.0, h / 2.0],
+                Tag::Bin,
+                0.6,
+                true,
+            );
+            builder.fixed_box(
+                &name,
+                [cx, cy + sy / 2.0 + wall / 2.0, floor_z + h / 2.0],
+                [sx / 2.0, wall / 2.0, h / 2.0],
+                Tag::Bin,
+                0.6,
+                true,
+            );
             // The stand the bin sits on.
             let stand_h = floor_z - wall;
             if stand_h > 0.0 {
-                builder.fixed_box(&name, [cx, cy, stand_h / 2.0], [sx / 2.0, sy / 2.0, stand_h / 2.0], Tag::Scenery, 0.6, true);
+                builder.fixed_box(
+                    &name,
+                    [cx, cy, stand_h / 2.0],
+                    [sx / 2.0, sy / 2.0, stand_h / 2.0],
+                    Tag::Scenery,
+                    0.6,
+                    true,
+                );
             }
             bins.push(BinBody {
                 name: bin.name.clone(),
@@ -223,12 +306,25 @@ impl Cell {
 
         // The part, upstream of the photo-eye at a random lateral offset.
         let part = PartInstance::draw(scenario, rng);
-        let lateral = rng.range(-scenario.parts.max_lateral_offset_m, scenario.parts.max_lateral_offset_m);
-        let part_xy = [belt.photo_eye_x_m - belt.spawn_upstream_m, belt.belt_center_m[1] + lateral];
+        let lateral = rng.range(
+            -scenario.parts.max_lateral_offset_m,
+            scenario.parts.max_lateral_offset_m,
+        );
+        let part_xy = [
+            belt.photo_eye_x_m - belt.spawn_upstream_m,
+            belt.belt_center_m[1] + lateral,
+        ];
         let part_body = insert_part(&mut world, &part, part_xy, belt_top_z);
 
         let (bottle_body, bottle_lying) = if scenario.bottle.enabled {
-            let (body, lying) = insert_bottle(&mut world, scenario, part_xy, part.outer_radius_m, belt_top_z, rng);
+            let (body, lying) = insert_bottle(
+                &mut world,
+                scenario,
+                part_xy,
+                part.outer_radius_m,
+                belt_top_z,
+                rng,
+            );
             (Some(body), lying)
         } else {
             (None, false)
@@ -263,7 +359,11 @@ impl Cell {
 
     /// Pose of a body in the world.
     pub fn body_pose(&self, body: RigidBodyHandle) -> Option<Isometry3<f64>> {
-        self.world.physics.bodies.get(body).map(|b| pose_from_physics(b.position()))
+        self.world
+            .physics
+            .bodies
+            .get(body)
+            .map(|b| pose_from_physics(b.position()))
     }
 
     /// Whether the photo-eye's beam is broken by any body.
@@ -277,7 +377,12 @@ impl Cell {
 }
 
 /// Inserts the part as a dynamic tube (solid cylinder collider with the tube's mass properties).
-fn insert_part(world: &mut World, part: &PartInstance, xy: [f64; 2], belt_top_z: f64) -> RigidBodyHandle {
+fn insert_part(
+    world: &mut World,
+    part: &PartInstance,
+    xy: [f64; 2],
+    belt_top_z: f64,
+) -> RigidBodyHandle {
     let center = Isometry3::translation(xy[0], xy[1], belt_top_z + part.height_m / 2.0);
     let body = world.physics.bodies.insert(
         RigidBodyBuilder::dynamic()
@@ -285,19 +390,30 @@ fn insert_part(world: &mut World, part: &PartInstance, xy: [f64; 2], belt_top_z:
             .can_sleep(false)
             .user_data(Tag::Part as u128),
     );
-    let (outer, inner, h, m) = (part.outer_radius_m, part.bore_radius_m(), part.height_m, part.mass_kg);
+    let (outer, inner, h, m) = (
+        part.outer_radius_m,
+        part.bore_radius_m(),
+        part.height_m,
+        part.mass_kg,
+    );
     let axial = 0.5 * m * (outer * outer + inner * inner);
     let transverse = m / 12.0 * (3.0 * (outer * outer + inner * inner) + h * h);
     let rotation = z_cylinder_rotation();
     // In the collider's own frame the axis is y.
-    let props = MassProperties::new(Vector::ZERO, m as f32, Vector::new(transverse as f32, axial as f32, transverse as f32));
+    let props = MassProperties::new(
+        Vector::ZERO,
+        m as f32,
+        Vector::new(transverse as f32, axial as f32, transverse as f32),
+    );
     let collider = ColliderBuilder::cylinder((h / 2.0) as f32, outer as f32)
         .rotation(vector_to_physics(&rotation.scaled_axis()))
         .mass_properties(props)
         .friction(0.6)
         .user_data(Tag::Part as u128);
     let physics = &mut world.physics;
-    physics.colliders.insert_with_parent(collider, body, &mut physics.bodies);
+    physics
+        .colliders
+        .insert_with_parent(collider, body, &mut physics.bodies);
     body
 }
 
@@ -313,15 +429,25 @@ fn insert_bottle(
     let bottle = &scenario.bottle;
     let belt = &scenario.conveyor;
     let lying = rng.uniform() < bottle.lying_fraction;
-    let footprint = if lying { bottle.height_m / 2.0 } else { bottle.radius_m };
+    let footprint = if lying {
+        bottle.height_m / 2.0
+    } else {
+        bottle.radius_m
+    };
     let y_low = belt.belt_center_m[1] - belt.width_m / 2.0 + footprint.min(belt.width_m / 2.0);
     let y_high = belt.belt_center_m[1] + belt.width_m / 2.0 - footprint.min(belt.width_m / 2.0);
     let mut xy = [part_xy[0] + bottle.distance_range_m[1], part_xy[1]];
     for _ in 0..64 {
         let distance = rng.range(bottle.distance_range_m[0], bottle.distance_range_m[1]);
         let angle = rng.range(0.0, std::f64::consts::TAU);
-        let candidate = [part_xy[0] + distance * angle.cos(), part_xy[1] + distance * angle.sin()];
-        if candidate[1] >= y_low && candidate[1] <= y_high && distance > part_radius + footprint + 0.01 {
+        let candidate = [
+            part_xy[0] + distance * angle.cos(),
+            part_xy[1] + distance * angle.sin(),
+        ];
+        if candidate[1] >= y_low
+            && candidate[1] <= y_high
+            && distance > part_radius + footprint + 0.01
+        {
             xy = candidate;
             break;
         }
@@ -330,14 +456,19 @@ fn insert_bottle(
     let (z, rotation) = if lying {
         (
             belt_top_z + bottle.radius_m,
-            UnitQuaternion::from_euler_angles(0.0, 0.0, yaw) * UnitQuaternion::from_euler_angles(0.0, std::f64::consts::FRAC_PI_2, 0.0),
+            UnitQuaternion::from_euler_angles(0.0, 0.0, yaw)
+                * UnitQuaternion::from_euler_angles(0.0, std::f64::consts::FRAC_PI_2, 0.0),
         )
     } else {
         (belt_top_z, UnitQuaternion::from_euler_angles(0.0, 0.0, yaw))
     };
     // The body's origin is the bottle's base centre; its axis is the body's z.
     let pose = Isometry3::from_parts(Translation3::new(xy[0], xy[1], z), rotation);
-    let pose = if lying { pose * Isometry3::translation(0.0, 0.0, -bottle.height_m / 2.0) } else { pose };
+    let pose = if lying {
+        pose * Isometry3::translation(0.0, 0.0, -bottle.height_m / 2.0)
+    } else {
+        pose
+    };
     let body = world.physics.bodies.insert(
         RigidBodyBuilder::dynamic()
             .pose(pose_to_physics(&pose))
@@ -349,7 +480,12 @@ fn insert_bottle(
     let axis = z_cylinder_rotation();
     let parts = [
         (shoulder_h / 2.0, shoulder_h / 2.0, bottle.radius_m, 0.85),
-        (shoulder_h + neck_h / 2.0, neck_h / 2.0, bottle.radius_m * 0.42, 0.15),
+        (
+            shoulder_h + neck_h / 2.0,
+            neck_h / 2.0,
+            bottle.radius_m * 0.42,
+            0.15,
+        ),
     ];
     let physics = &mut world.physics;
     for (center_z, half_h, radius, mass_share) in parts {
@@ -359,7 +495,9 @@ fn insert_bottle(
             .mass((bottle.mass_kg * mass_share) as f32)
             .friction(0.5)
             .user_data(Tag::Bottle as u128);
-        physics.colliders.insert_with_parent(collider, body, &mut physics.bodies);
+        physics
+            .colliders
+            .insert_with_parent(collider, body, &mut physics.bodies);
     }
     (body, lying)
 }
@@ -368,8 +506,14 @@ fn insert_bottle(
 fn set_robot_friction(world: &mut World, arm: &SimArm, pad_friction: f64) {
     let physics = &mut world.physics;
     for (name, body) in arm.link_bodies() {
-        let friction = if name.starts_with("finger") { pad_friction } else { 0.5 };
-        let Some(rb) = physics.bodies.get(*body) else { continue };
+        let friction = if name.starts_with("finger") {
+            pad_friction
+        } else {
+            0.5
+        };
+        let Some(rb) = physics.bodies.get(*body) else {
+            continue;
+        };
         let handles: Vec<ColliderHandle> = rb.colliders().to_vec();
         for handle in handles {
             if let Some(collider) = physics.colliders.get_mut(handle) {
@@ -403,9 +547,13 @@ fn robot_shapes(world: &World, arm: &SimArm, q: &[f64; DOF]) -> Vec<RobotShape> 
             LinkMount::Dh(k) => frames[k],
             LinkMount::Finger { .. } => frames[DOF],
         };
-        let Some(rb) = world.physics.bodies.get(*body) else { continue };
+        let Some(rb) = world.physics.bodies.get(*body) else {
+            continue;
+        };
         for handle in rb.colliders() {
-            let Some(collider) = world.physics.colliders.get(*handle) else { continue };
+            let Some(collider) = world.physics.colliders.get(*handle) else {
+                continue;
+            };
             let shape_in_base = base_from_world * pose_from_physics(collider.position());
             shapes.push(RobotShape {
                 link: name.clone(),

@@ -35,7 +35,11 @@ impl BoreForm {
     /// Radius of the bore edge at polar angle `theta_rad` about the centre, m.
     pub fn radius_at(&self, theta_rad: f64) -> f64 {
         match *self {
-            Self::Ellipse { a_m, b_m, angle_rad } => {
+            Self::Ellipse {
+                a_m,
+                b_m,
+                angle_rad,
+            } => {
                 let (s, c) = (theta_rad - angle_rad).sin_cos();
                 a_m * b_m / ((b_m * c).powi(2) + (a_m * s).powi(2)).sqrt()
             }

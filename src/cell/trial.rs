@@ -41,10 +41,17 @@ pub struct CellTrialRunner {
 
 impl CellTrialRunner {
     /// A runner for `scenario` (read from `scenario_path`, which anchors a relative URDF path).
-    pub fn new(scenario: Scenario, scenario_path: &Path, perception: Perception) -> Result<Self, CellError> {
+    pub fn new(
+        scenario: Scenario,
+        scenario_path: &Path,
+        perception: Perception,
+    ) -> Result<Self, CellError> {
         let urdf = match &scenario.robot.urdf {
             Some(relative) => {
-                let path = scenario_path.parent().unwrap_or(Path::new(".")).join(relative);
+                let path = scenario_path
+                    .parent()
+                    .unwrap_or(Path::new("."))
+                    .join(relative);
                 let text = std::fs::read_to_string(&path).map_err(|e| {
                     CellError::Sim(crate::sim::SimError::Urdf {
                         reason: e.to_string(),
@@ -84,7 +91,12 @@ impl TrialRunner for CellTrialRunner {
         let mut rng = SimRng::new(seed);
         let mut record = match Cell::build(&self.scenario, self.urdf.as_ref(), &mut rng) {
             Ok(cell) => Trial::new(&self.scenario, self.perception, cell).run(index, seed),
-            Err(e) => TrialRecord::failed(index, seed, FailureReason::PhysicsBlowUp, format!("cell could not be built: {e}")),
+            Err(e) => TrialRecord::failed(
+                index,
+                seed,
+                FailureReason::PhysicsBlowUp,
+                format!("cell could not be built: {e}"),
+            ),
         };
         record.timing.wall_ms = started.elapsed().as_secs_f64() * 1e3;
         record
@@ -124,7 +136,9 @@ struct Percept {
 enum Watch {
     Free,
     /// The part is held: it must stay where it was in the TCP frame.
-    Holding { tcp_from_part: Isometry3<f64> },
+    Holding {
+        tcp_from_part: Isometry3<f64>,
+    },
 }
 
 struct Trial<'a> {
@@ -190,16 +204,26 @@ impl<'a> Trial<'a> {
         if let Err(f) = result {
             (failure, detail) = (Some(f.reason), Some(f.detail));
         } else if bottle_picked {
-            (failure, detail) = (Some(FailureReason::DistractorPicked), Some("the bottle was lifted".into()));
+            (failure, detail) = (
+                Some(FailureReason::DistractorPicked),
+                Some("the bottle was lifted".into()),
+            );
         } else if touched {
             (failure, detail) = (
                 Some(FailureReason::DistractorTouched),
-                Some(format!("bottle moved {:.1} mm (contact: {})", displacement_m * 1e3, self.bottle_touched)),
+                Some(format!(
+                    "bottle moved {:.1} mm (contact: {})",
+                    displacement_m * 1e3,
+                    self.bottle_touched
+                )),
             );
         } else if placed_bin.as_deref() != Some(correct_bin.as_str()) {
             (failure, detail) = (
                 Some(FailureReason::WrongBin),
-                Some(format!("part in {}, belongs in {correct_bin}", placed_bin.as_deref().unwrap_or("no bin"))),
+                Some(format!(
+                    "part in {}, belongs in {correct_bin}",
+                    placed_bin.as_deref().unwrap_or("no bin")
+                )),
             );
         }
         if failure.is_some() {
@@ -225,7 +249,11 @@ impl<'a> Trial<'a> {
     }
 
     fn bin_for(&self, part_type: &str, accept: bool) -> String {
-        let bin = if accept { self.scenario.accept_bin(part_type) } else { self.scenario.reject_bin() };
+        let bin = if accept {
+            self.scenario.accept_bin(part_type)
+        } else {
+            self.scenario.reject_bin()
+        };
         bin.map(|b| b.name.clone()).unwrap_or_default()
     }
 
@@ -234,7 +262,9 @@ impl<'a> Trial<'a> {
         self.wait_for_part()?;
         self.pick_time_s = Some(self.cell.world.time_s());
         let percept = self.perceive()?;
-        let accept = percept.roundness_mm.is_some_and(|r| r <= self.scenario.roundness_tolerance_mm);
+        let accept = percept
+            .roundness_mm
+            .is_some_and(|r| r <= self.scenario.roundness_tolerance_mm);
         let bin = self.bin_for(&percept.part_type, accept);
         *decision = Some(DecisionRecord {
             detected_type: percept.part_type.clone(),
@@ -298,7 +328,10 @@ impl<'a> Trial<'a> {
     fn perceive(&mut self) -> Result<Percept, Failure> {
         match self.perception {
             Perception::Oracle => self.perceive_oracle(),
-            Perception::Camera => fail(FailureReason::NotDetected, "camera perception is not available in this build"),
+            Perception::Camera => fail(
+                FailureReason::NotDetected,
+                "camera perception is not available in this build",
+            ),
         }
     }
 
@@ -313,7 +346,8 @@ impl<'a> Trial<'a> {
             let pose = pose_from_physics(rb.position());
             // The bottle's bounding cylinder as the planner's obstacle.
             let bottle = &self.scenario.bottle;
-            let shape = SharedShape::cylinder((bottle.height_m / 2.0) as f32, bottle.radius_m as f32);
+            let shape =
+                SharedShape::cylinder((bottle.height_m / 2.0) as f32, bottle.radius_m as f32);
             let center = pose
                 * Isometry3::from_parts(
                     Translation3::new(0.0, 0.0, bottle.height_m / 2.0),
@@ -354,12 +388,17 @@ impl<'a> Trial<'a> {
     fn tcp_in_base(&self, xyz: Vector3<f64>, yaw_rad: f64) -> Isometry3<f64> {
         let world = Isometry3::from_parts(
             Translation3::from(xyz),
-            UnitQuaternion::from_euler_angles(0.0, 0.0, yaw_rad) * UnitQuaternion::from_euler_angles(std::f64::consts::PI, 0.0, 0.0),
+            UnitQuaternion::from_euler_angles(0.0, 0.0, yaw_rad)
+                * UnitQuaternion::from_euler_angles(std::f64::consts::PI, 0.0, 0.0),
         );
         self.cell.arm.world_from_base().inverse() * world
     }
 
-    fn plan_pick(&self, percept: &Percept, checker: &CollisionChecker) -> Result<PickPlan, Failure> {
+    fn plan_pick(
+        &self,
+        percept: &Percept,
+        checker: &CollisionChecker,
+    ) -> Result<PickPlan, Failure> {
         let belt_top = self.cell.belt_top_z;
         let [x, y] = percept.part_xy;
         let grasp_z = belt_top + GRASP_TCP_ABOVE_BOTTOM_M;
@@ -376,14 +415,22 @@ impl<'a> Trial<'a> {
         let speed = self.scenario.robot.speed_fraction;
         let mut reachable = false;
         let mut last_hit = String::new();
-        for offset_deg in [0.0, 180.0, 30.0, -30.0, 210.0, 150.0, 60.0, -60.0, 90.0, 270.0] {
+        for offset_deg in [
+            0.0, 180.0, 30.0, -30.0, 210.0, 150.0, 60.0, -60.0, 90.0, 270.0,
+        ] {
             let yaw = preferred_yaw + f64::to_radians(offset_deg);
             let above = self.tcp_in_base(Vector3::new(x, y, grasp_z + APPROACH_M), yaw);
             let at = self.tcp_in_base(Vector3::new(x, y, grasp_z), yaw);
             let lifted = self.tcp_in_base(Vector3::new(x, y, lift_z), yaw);
-            let Some(q_above) = self.ik.solve(&above).nearest(&self.q) else { continue };
-            let Some(q_at) = self.ik.solve(&at).nearest(&q_above) else { continue };
-            let Some(q_lift) = self.ik.solve(&lifted).nearest(&q_at) else { continue };
+            let Some(q_above) = self.ik.solve(&above).nearest(&self.q) else {
+                continue;
+            };
+            let Some(q_at) = self.ik.solve(&at).nearest(&q_above) else {
+                continue;
+            };
+            let Some(q_lift) = self.ik.solve(&lifted).nearest(&q_at) else {
+                continue;
+            };
             reachable = true;
             let to_pregrasp = JointTrajectory::through(&self.model, &[self.q, q_above], speed);
             let descend = JointTrajectory::through(&self.model, &[q_above, q_at], speed * 0.5);
@@ -392,7 +439,12 @@ impl<'a> Trial<'a> {
                 .check_trajectory(&to_pregrasp, open, None, &[])
                 .or_else(|| checker.check_trajectory(&descend, open, None, &[]));
             match hit {
-                Some(hit) => last_hit = format!("{} would hit {} at yaw {offset_deg} deg", hit.link, hit.obstacle),
+                Some(hit) => {
+                    last_hit = format!(
+                        "{} would hit {} at yaw {offset_deg} deg",
+                        hit.link, hit.obstacle
+                    )
+                }
                 None => {
                     return Ok(PickPlan {
                         to_pregrasp,
@@ -406,11 +458,20 @@ impl<'a> Trial<'a> {
         if reachable {
             fail(FailureReason::Collision, last_hit)
         } else {
-            fail(FailureReason::Unreachable, format!("no IK solution to grasp the part at ({x:.3}, {y:.3})"))
+            fail(
+                FailureReason::Unreachable,
+                format!("no IK solution to grasp the part at ({x:.3}, {y:.3})"),
+            )
         }
     }
 
-    fn plan_place(&self, percept: &Percept, bin_name: &str, q_start: &JointVector, checker: &CollisionChecker) -> Result<PlacePlan, Failure> {
+    fn plan_place(
+        &self,
+        percept: &Percept,
+        bin_name: &str,
+        q_start: &JointVector,
+        checker: &CollisionChecker,
+    ) -> Result<PlacePlan, Failure> {
         let Some(bin) = self.cell.bins.iter().find(|b| b.name == bin_name) else {
             return fail(FailureReason::WrongBin, format!("no bin named {bin_name}"));
         };
@@ -419,10 +480,17 @@ impl<'a> Trial<'a> {
         let above_z = floor.z + bin.wall_height + 0.04 + GRASP_TCP_ABOVE_BOTTOM_M;
         let carried = Carried {
             tcp_from_shape: Isometry3::from_parts(
-                Translation3::new(0.0, 0.0, -(percept.part_height_m / 2.0 - GRASP_TCP_ABOVE_BOTTOM_M)),
+                Translation3::new(
+                    0.0,
+                    0.0,
+                    -(percept.part_height_m / 2.0 - GRASP_TCP_ABOVE_BOTTOM_M),
+                ),
                 UnitQuaternion::from_euler_angles(std::f64::consts::FRAC_PI_2, 0.0, 0.0),
             ),
-            shape: SharedShape::cylinder((percept.part_height_m / 2.0) as f32, percept.part_outer_radius_m as f32),
+            shape: SharedShape::cylinder(
+                (percept.part_height_m / 2.0) as f32,
+                percept.part_outer_radius_m as f32,
+            ),
         };
         let grip = percept.part_outer_radius_m;
         let open = grip + self.scenario.gripper.open_clearance_m;
@@ -433,25 +501,47 @@ impl<'a> Trial<'a> {
             let yaw = f64::to_radians(yaw_deg);
             let above = self.tcp_in_base(Vector3::new(floor.x, floor.y, above_z), yaw);
             let at = self.tcp_in_base(Vector3::new(floor.x, floor.y, place_z), yaw);
-            let Some(q_above) = self.ik.solve(&above).nearest(q_start) else { continue };
-            let Some(q_at) = self.ik.solve(&at).nearest(&q_above) else { continue };
+            let Some(q_above) = self.ik.solve(&above).nearest(q_start) else {
+                continue;
+            };
+            let Some(q_at) = self.ik.solve(&at).nearest(&q_above) else {
+                continue;
+            };
             reachable = true;
             let transport = JointTrajectory::through(&self.model, &[*q_start, q_above], speed);
             let lower = JointTrajectory::through(&self.model, &[q_above, q_at], speed * 0.5);
-            let retreat = JointTrajectory::through(&self.model, &[q_at, q_above, self.scenario.robot.home_q_rad], speed);
+            let retreat = JointTrajectory::through(
+                &self.model,
+                &[q_at, q_above, self.scenario.robot.home_q_rad],
+                speed,
+            );
             let hit = checker
                 .check_trajectory(&transport, grip, Some(&carried), &[])
                 .or_else(|| checker.check_trajectory(&lower, grip, Some(&carried), &[]))
                 .or_else(|| checker.check_trajectory(&retreat, open, None, &[]));
             match hit {
-                Some(hit) => last_hit = format!("{} would hit {} placing at yaw {yaw_deg} deg", hit.link, hit.obstacle),
-                None => return Ok(PlacePlan { transport, lower, retreat }),
+                Some(hit) => {
+                    last_hit = format!(
+                        "{} would hit {} placing at yaw {yaw_deg} deg",
+                        hit.link, hit.obstacle
+                    )
+                }
+                None => {
+                    return Ok(PlacePlan {
+                        transport,
+                        lower,
+                        retreat,
+                    });
+                }
             }
         }
         if reachable {
             fail(FailureReason::Collision, last_hit)
         } else {
-            fail(FailureReason::Unreachable, format!("bin {bin_name} is out of reach"))
+            fail(
+                FailureReason::Unreachable,
+                format!("bin {bin_name} is out of reach"),
+            )
         }
     }
 
@@ -473,13 +563,23 @@ impl<'a> Trial<'a> {
             }
             self.step()?;
             let now = self.cell.arm.finger_positions_m(&self.cell.world);
-            let moving = now.iter().zip(&last).any(|(a, b)| (a - b).abs() > 0.0005 * dt);
+            let moving = now
+                .iter()
+                .zip(&last)
+                .any(|(a, b)| (a - b).abs() > 0.0005 * dt);
             still_for = if moving { 0.0 } else { still_for + dt };
             last = now;
         }
         let closed_on_part = last.iter().all(|s| *s > part_radius_m - 0.004);
         if !closed_on_part {
-            return fail(FailureReason::Slipped, format!("fingers closed to {:.1}/{:.1} mm: nothing between them", last[0] * 1e3, last[1] * 1e3));
+            return fail(
+                FailureReason::Slipped,
+                format!(
+                    "fingers closed to {:.1}/{:.1} mm: nothing between them",
+                    last[0] * 1e3,
+                    last[1] * 1e3
+                ),
+            );
         }
         Ok(())
     }
@@ -522,9 +622,15 @@ impl<'a> Trial<'a> {
         }
         let part_z = now.translation.vector.norm();
         if drift > 0.05 || part_z > 0.2 {
-            fail(FailureReason::Dropped, format!("part fell from the fingers ({:.0} mm away)", drift * 1e3))
+            fail(
+                FailureReason::Dropped,
+                format!("part fell from the fingers ({:.0} mm away)", drift * 1e3),
+            )
         } else {
-            fail(FailureReason::Slipped, format!("part slid {:.1} mm in the fingers", drift * 1e3))
+            fail(
+                FailureReason::Slipped,
+                format!("part slid {:.1} mm in the fingers", drift * 1e3),
+            )
         }
     }
 
@@ -538,7 +644,9 @@ impl<'a> Trial<'a> {
     }
 
     fn hold(&mut self) {
-        self.cell.arm.command(&mut self.cell.world, &self.q, &[0.0; 6]);
+        self.cell
+            .arm
+            .command(&mut self.cell.world, &self.q, &[0.0; 6]);
     }
 
     /// One step holding the current arm command.
@@ -550,19 +658,40 @@ impl<'a> Trial<'a> {
     /// One physics step with the belt and gripper drives, then the blow-up and bottle checks.
     fn step_physics(&mut self) -> Result<(), Failure> {
         let dt = self.cell.world.params().dt_s;
-        self.cell.conveyor.ramp_towards(self.belt_target_m_s as f32, (BELT_ACCEL_M_S2 * dt) as f32);
-        self.cell.arm.command_gripper(&mut self.cell.world, self.finger_command_m, self.grip_force_n);
+        self.cell
+            .conveyor
+            .ramp_towards(self.belt_target_m_s as f32, (BELT_ACCEL_M_S2 * dt) as f32);
+        self.cell.arm.command_gripper(
+            &mut self.cell.world,
+            self.finger_command_m,
+            self.grip_force_n,
+        );
         let started = Instant::now();
         self.cell.world.step_with_hooks(&self.cell.conveyor);
         self.timing.physics_ms += started.elapsed().as_secs_f64() * 1e3;
         let time_s = self.cell.world.time_s();
         if time_s > self.scenario.task.trial_timeout_s {
-            return fail(FailureReason::Timeout, format!("trial ran past {:.0} s", self.scenario.task.trial_timeout_s));
+            return fail(
+                FailureReason::Timeout,
+                format!("trial ran past {:.0} s", self.scenario.task.trial_timeout_s),
+            );
         }
-        for body in [Some(self.cell.part_body), self.cell.bottle_body].into_iter().flatten() {
-            let finite = self.cell.world.physics.bodies.get(body).is_some_and(|b| b.position().is_finite() && b.linvel().is_finite());
+        for body in [Some(self.cell.part_body), self.cell.bottle_body]
+            .into_iter()
+            .flatten()
+        {
+            let finite = self
+                .cell
+                .world
+                .physics
+                .bodies
+                .get(body)
+                .is_some_and(|b| b.position().is_finite() && b.linvel().is_finite());
             if !finite {
-                return fail(FailureReason::PhysicsBlowUp, format!("a body's state became non-finite at t = {time_s:.3} s"));
+                return fail(
+                    FailureReason::PhysicsBlowUp,
+                    format!("a body's state became non-finite at t = {time_s:.3} s"),
+                );
             }
         }
         if !self.bottle_touched {
@@ -572,34 +701,58 @@ impl<'a> Trial<'a> {
     }
 
     fn robot_touches_bottle(&self) -> bool {
-        let Some(bottle) = self.cell.bottle_body else { return false };
+        let Some(bottle) = self.cell.bottle_body else {
+            return false;
+        };
         let physics = &self.cell.world.physics;
-        let Some(rb) = physics.bodies.get(bottle) else { return false };
+        let Some(rb) = physics.bodies.get(bottle) else {
+            return false;
+        };
         rb.colliders().iter().any(|&collider| {
-            physics.narrow_phase.contact_pairs_with(collider).any(|pair| {
-                let other = if pair.collider1 == collider { pair.collider2 } else { pair.collider1 };
-                pair.has_any_active_contact()
-                    && physics.colliders.get(other).is_some_and(|c| c.user_data == Tag::Robot as u128)
-            })
+            physics
+                .narrow_phase
+                .contact_pairs_with(collider)
+                .any(|pair| {
+                    let other = if pair.collider1 == collider {
+                        pair.collider2
+                    } else {
+                        pair.collider1
+                    };
+                    pair.has_any_active_contact()
+                        && physics
+                            .colliders
+                            .get(other)
+                            .is_some_and(|c| c.user_data == Tag::Robot as u128)
+                })
         })
     }
 
     fn bin_holding_part(&self) -> Option<String> {
         let pose = self.cell.body_pose(self.cell.part_body)?;
         let center = pose.translation.vector;
-        self.cell.bins.iter().find(|bin| bin.contains(&center)).map(|bin| bin.name.clone())
+        self.cell
+            .bins
+            .iter()
+            .find(|bin| bin.contains(&center))
+            .map(|bin| bin.name.clone())
     }
 
     fn bottle_displacement_m(&self) -> f64 {
-        let (Some(body), Some(rest)) = (self.cell.bottle_body, self.bottle_rest) else { return 0.0 };
-        self.cell
-            .body_pose(body)
-            .map_or(0.0, |now| (now.translation.vector - rest.translation.vector).norm())
+        let (Some(body), Some(rest)) = (self.cell.bottle_body, self.bottle_rest) else {
+            return 0.0;
+        };
+        self.cell.body_pose(body).map_or(0.0, |now| {
+            (now.translation.vector - rest.translation.vector).norm()
+        })
     }
 
     fn bottle_lifted(&self) -> bool {
-        let (Some(body), Some(rest)) = (self.cell.bottle_body, self.bottle_rest) else { return false };
-        self.cell.body_pose(body).is_some_and(|now| now.translation.z - rest.translation.z > 0.02)
+        let (Some(body), Some(rest)) = (self.cell.bottle_body, self.bottle_rest) else {
+            return false;
+        };
+        self.cell
+            .body_pose(body)
+            .is_some_and(|now| now.translation.z - rest.translation.z > 0.02)
     }
 }
 

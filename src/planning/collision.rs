@@ -131,7 +131,11 @@ impl CollisionChecker {
                         flange * Translation3::new(shift, 0.0, 0.0)
                     }
                 };
-                (shape.link.as_str(), mount * shape.mount_from_shape, &shape.shape)
+                (
+                    shape.link.as_str(),
+                    mount * shape.mount_from_shape,
+                    &shape.shape,
+                )
             })
             .collect();
         if let Some(carried) = carried {
@@ -148,7 +152,12 @@ impl CollisionChecker {
                 if !aabb.intersects(&obstacle.shape.compute_aabb(&obstacle_pose)) {
                     continue;
                 }
-                let close = match query::distance(&pose, shape.as_ref(), &obstacle_pose, obstacle.shape.as_ref()) {
+                let close = match query::distance(
+                    &pose,
+                    shape.as_ref(),
+                    &obstacle_pose,
+                    obstacle.shape.as_ref(),
+                ) {
                     Ok(d) => d.distance < self.margin_m as f32,
                     // Pairs parry cannot measure fall back to an overlap test.
                     Err(_) => query::intersection_test(
@@ -186,11 +195,15 @@ impl CollisionChecker {
             .map(|(a, b)| (a - b).abs())
             .fold(0.0, f64::max);
         // Waypoints can make the path longer than start-to-end; sample by duration too.
-        let samples = ((span / self.resolution_rad).ceil() as usize).max((duration / 0.05).ceil() as usize).max(1);
+        let samples = ((span / self.resolution_rad).ceil() as usize)
+            .max((duration / 0.05).ceil() as usize)
+            .max(1);
         for i in 0..=samples {
             let t = duration * i as f64 / samples as f64;
             let sample = trajectory.sample(t)?;
-            if let Some((link, obstacle)) = self.check_configuration(&sample.q, finger_offset_m, carried, ignore) {
+            if let Some((link, obstacle)) =
+                self.check_configuration(&sample.q, finger_offset_m, carried, ignore)
+            {
                 return Some(CollisionHit {
                     link,
                     obstacle,

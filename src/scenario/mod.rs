@@ -293,7 +293,8 @@ impl Scenario {
 
     /// Parses and validates scenario TOML; `path` names the source in errors.
     pub fn from_toml(text: &str, path: &Path) -> Result<Self, ScenarioError> {
-        let scenario: Scenario = toml::from_str(text).map_err(|e| ScenarioError::from_toml(path, text, &e))?;
+        let scenario: Scenario =
+            toml::from_str(text).map_err(|e| ScenarioError::from_toml(path, text, &e))?;
         scenario.validate(path)?;
         Ok(scenario)
     }

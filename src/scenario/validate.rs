@@ -128,10 +128,20 @@ impl Scenario {
             return Err(c.fail("robot.home_q_rad", e.to_string()));
         }
         let gripper = &self.gripper;
-        c.in_range("gripper.grip_force_n", gripper.grip_force_n, 0.0, MAX_FINGER_FORCE_N)?;
+        c.in_range(
+            "gripper.grip_force_n",
+            gripper.grip_force_n,
+            0.0,
+            MAX_FINGER_FORCE_N,
+        )?;
         c.positive("gripper.grip_force_n", gripper.grip_force_n)?;
         c.positive("gripper.pad_friction", gripper.pad_friction)?;
-        c.in_range("gripper.open_clearance_m", gripper.open_clearance_m, 0.0, 0.05)?;
+        c.in_range(
+            "gripper.open_clearance_m",
+            gripper.open_clearance_m,
+            0.0,
+            0.05,
+        )?;
         Ok(())
     }
 
@@ -175,7 +185,9 @@ impl Scenario {
             c.positive(&key("outer_diameter_mm"), part.outer_diameter_mm)?;
             c.positive(&key("density_kg_m3"), part.density_kg_m3)?;
             c.in_range(&key("height_mm"), part.height_mm, 40.0, 200.0)?;
-            if part.bore_diameter_mm + 2.0 * self.parts.max_roundness_mm + 4.0 >= part.outer_diameter_mm {
+            if part.bore_diameter_mm + 2.0 * self.parts.max_roundness_mm + 4.0
+                >= part.outer_diameter_mm
+            {
                 return Err(c.fail(
                     key("bore_diameter_mm"),
                     "leaves a wall under 2 mm around the bore",
@@ -200,8 +212,18 @@ impl Scenario {
                 ));
             }
         }
-        c.in_range("parts.max_roundness_mm", self.parts.max_roundness_mm, 0.0, 5.0)?;
-        c.in_range("parts.max_lateral_offset_m", self.parts.max_lateral_offset_m, 0.0, 1.0)?;
+        c.in_range(
+            "parts.max_roundness_mm",
+            self.parts.max_roundness_mm,
+            0.0,
+            5.0,
+        )?;
+        c.in_range(
+            "parts.max_lateral_offset_m",
+            self.parts.max_lateral_offset_m,
+            0.0,
+            1.0,
+        )?;
         Ok(())
     }
 
@@ -226,7 +248,10 @@ impl Scenario {
         let known: BTreeSet<&str> = self.part_types.iter().map(|p| p.name.as_str()).collect();
         let rejects = self.bins.iter().filter(|b| b.reject).count();
         if rejects != 1 {
-            return Err(c.fail("bins", format!("needs exactly one reject bin, got {rejects}")));
+            return Err(c.fail(
+                "bins",
+                format!("needs exactly one reject bin, got {rejects}"),
+            ));
         }
         let arm = ArmModel::aubo_i5().with_tool(crate::cell::gripper_tcp());
         let Ok(ik) = AnalyticIk::new(arm) else {
@@ -250,7 +275,10 @@ impl Scenario {
                 return Err(c.fail(key("accepts"), "the reject bin accepts no type"));
             }
             if let Some(unknown) = bin.accepts.iter().find(|t| !known.contains(t.as_str())) {
-                return Err(c.fail(key("accepts"), format!("names unknown part type `{unknown}`")));
+                return Err(c.fail(
+                    key("accepts"),
+                    format!("names unknown part type `{unknown}`"),
+                ));
             }
             // The place pose: gripper pointing down, the tallest part's bottom 2 cm above the rim.
             let base = self.robot.base_xyz_m;
@@ -279,7 +307,10 @@ impl Scenario {
             if count != 1 {
                 return Err(c.fail(
                     "bins",
-                    format!("part type `{}` must be accepted by exactly one bin, found {count}", part.name),
+                    format!(
+                        "part type `{}` must be accepted by exactly one bin, found {count}",
+                        part.name
+                    ),
                 ));
             }
         }

@@ -1,0 +1,436 @@
+//! The bore detector: every dark bore inside a bright rim, measured to sub-pixel accuracy.
+//!
+//! Pipeline: filter (3x3 median) -> threshold (adaptive mean, asking pixels to be brighter than
+//! their block) -> border following -> for each hole border (a dark region fully enclosed by
+//! bright pixels): coarse Kasa circle -> rays from the coarse centre, sub-pixel edges
+//! ([`crate::perception::subpixel`]) -> acceptance tests -> geometric circle fit with one round of
+//! outlier rejection -> filtered roundness ([`crate::perception::roundness`]).
+//!
+//! Acceptance tests, each on the rays' own intensity profiles (so they are local and immune to
+//! illumination gradients and vignetting):
+//! 1. Size: the coarse radius lies in `[min_radius_px, max_radius_px]` and the hole border is
+//!    roughly circular (coarse RMS residual under a fifth of the radius).
+//! 2. Edges: at least `min_valid_share` of the rays show a dark-to-bright edge near the border.
+//! 3. Ring contrast: the bore is dark relative to its rim: median over rays of
+//!    `(rim - bore) / rim >= min_contrast_ratio` and `rim - bore >= min_contrast_levels`. Oil
+//!    stains only darken metal by a factor (transmission 0.55-0.8), so a stain on a rim fails.
+//! 4. Rim is an annulus of sufficient width: walking out from the edge, the profile must fall back
+//!    below `bore + 0.35 (rim - bore)` (the belt or a neighbour's bore) within
+//!    `max_outer_ratio` times the radius, on at least `min_closed_share` of the rays, and the
+//!    median width must be at least `min_ring_width_px`. A standing bottle's dark cap sits in a
+//!    translucent body three times its radius, with no dark fall in between: it fails this test.
+//! 5. Circularity: filtered roundness at most `max_roundness_ratio` times the radius. A lying
+//!    bottle's capsule (and any dark band in it) is elongated and fails.
+
+use crate::perception::circle_fit::{
+    CircleFit, fit_geometric, fit_kasa, raw_roundness, refine_geometric,
+};
+use crate::perception::contours::{BorderKind, Contour, find_contours};
+use crate::perception::error::PerceptionError;
+use crate::perception::filters::FilterMethod;
+use crate::perception::roundness::{DEFAULT_MAX_UPR, RoundnessProfile, filtered_roundness};
+use crate::perception::subpixel::{RayParams, refine_ray, sample_bilinear};
+use crate::perception::threshold::ThresholdMethod;
+use image::GrayImage;
+use std::f64::consts::TAU;
+
+/// Which edge points the circle is fitted to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+pub enum EdgeMode {
+    /// Sub-pixel edges on rays, roundness on the filtered profile (the default).
+    SubPixel,
+    /// The paper's classic way: integer hole-border pixels, eq. 11 on the raw points.
+    IntegerContour,
+    /// The paper's classic way with Canny: integer Canny edge pixels of the binary image.
+    Canny,
+}
+
+impl EdgeMode {
+    /// Short name for tables.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Self::SubPixel => "subpixel",
+            Self::IntegerContour => "integer-contour",
+            Self::Canny => "canny-integer",
+        }
+    }
+}
+
+/// Parameters of [`BoreDetector`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BoreDetectorParams {
+    /// Denoising filter.
+    pub filter: FilterMethod,
+    /// Segmentation of the bright rim.
+    pub threshold: ThresholdMethod,
+    /// Which edge points to fit.
+    pub edge_mode: EdgeMode,
+    /// Smallest bore radius reported.
+    pub min_radius_px: f64,
+    /// Largest bore radius reported.
+    pub max_radius_px: f64,
+    /// Smallest median `(rim - bore) / rim`.
+    pub min_contrast_ratio: f64,
+    /// Smallest median `rim - bore`, grey levels.
+    pub min_contrast_levels: f64,
+    /// Largest ratio of the rim's outer radius to the bore radius.
+    pub max_outer_ratio: f64,
+    /// Smallest median rim width.
+    pub min_ring_width_px: f64,
+    /// Share of sampled rays whose rim must close within `max_outer_ratio`.
+    pub min_closed_share: f64,
+    /// Share of rays that must show an edge.
+    pub min_valid_share: f64,
+    /// Largest roundness as a share of the radius.
+    pub max_roundness_ratio: f64,
+    /// Roundness profile cutoff, undulations per revolution.
+    pub max_upr: usize,
+    /// Ray sampling.
+    pub rays: RayParams,
+}
+
+impl Default for BoreDetectorParams {
+    fn default() -> Self {
+        Self {
+            filter: FilterMethod::Median { radius_px: 1 },
+            threshold: ThresholdMethod::AdaptiveMean {
+                block_radius_px: 20,
+                delta: -15,
+            },
+            edge_mode: EdgeMode::SubPixel,
+            min_radius_px: 12.0,
+            max_radius_px: 200.0,
+            min_contrast_ratio: 0.5,
+            min_contrast_levels: 25.0,
+            max_outer_ratio: 1.9,
+            min_ring_width_px: 4.0,
+            min_closed_share: 0.7,
+            min_valid_share: 0.7,
+            max_roundness_ratio: 0.25,
+            max_upr: DEFAULT_MAX_UPR,
+            rays: RayParams::default(),
+        }
+    }
+}
+
+/// A measured bore, pixels (x right, y down, pixel centres at integers).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Bore {
+    /// Fitted centre `[x, y]`.
+    pub centre_px: [f64; 2],
+    /// Fitted radius.
+    pub radius_px: f64,
+    /// `Rmax - Rmin` about the fitted centre.
+    pub roundness_px: f64,
+    /// One-sigma uncertainty of each centre coordinate.
+    pub centre_sigma_px: f64,
+    /// One-sigma uncertainty of the radius.
+    pub radius_sigma_px: f64,
+    /// One-sigma uncertainty of the roundness.
+    pub roundness_sigma_px: f64,
+    /// Edge points the fit used.
+    pub edge_points_px: Vec<[f64; 2]>,
+    /// Median `(rim - bore) / rim` over the rays.
+    pub contrast_ratio: f64,
+    /// Median ratio of the rim's outer radius to the bore radius over the rays.
+    pub outer_ratio: f64,
+}
+
+/// Smallest image side the detector accepts.
+pub const MIN_IMAGE_SIDE_PX: u32 = 16;
+
+/// Finds and measures bores. Holds only its parameters.
+#[derive(Debug, Clone, Default)]
+pub struct BoreDetector {
+    /// Parameters.
+    pub params: BoreDetectorParams,
+}
+
+impl BoreDetector {
+    /// A detector with `params`.
+    pub fn new(params: BoreDetectorParams) -> Self {
+        Self { params }
+    }
+
+    /// Every bore in `image`, sorted by `y` then `x`; an empty list when there is none.
+    pub fn detect(&self, image: &GrayImage) -> Result<Vec<Bore>, PerceptionError> {
+        if image.width() < MIN_IMAGE_SIDE_PX || image.height() < MIN_IMAGE_SIDE_PX {
+            return Err(PerceptionError::ImageTooSmall {
+                width_px: image.width(),
+                height_px: image.height(),
+                min_side_px: MIN_IMAGE_SIDE_PX,
+            });
+        }
+        let filtered = self.params.filter.apply(image);
+        let binary = self.params.threshold.apply(&filtered);
+        let contours = find_contours(&binary);
+        Ok(self.measure_contours(&filtered, &binary, &contours))
+    }
+
+    /// The stages after border following: candidates, edges, tests, fits.
+    pub fn measure_contours(
+        &self,
+        filtered: &GrayImage,
+        binary: &GrayImage,
+        contours: &[Contour],
+    ) -> Vec<Bore> {
+        let canny = match self.params.edge_mode {
+            EdgeMode::Canny => Some(crate::perception::edges::canny(binary, 50.0, 150.0)),
+            _ => None,
+        };
+        let mut bores: Vec<Bore> = contours
+            .iter()
+            .filter(|c| c.kind == BorderKind::Hole)
+            .filter_map(|c| self.measure_candidate(filtered, canny.as_ref(), c))
+            .collect();
+        // Keep one bore per place (the one with more edge points).
+        bores.sort_by_key(|b| std::cmp::Reverse(b.edge_points_px.len()));
+        let mut kept: Vec<Bore> = Vec::with_capacity(bores.len());
+        for bore in bores {
+            let duplicate = kept.iter().any(|k| {
+                let d =
+                    (k.centre_px[0] - bore.centre_px[0]).hypot(k.centre_px[1] - bore.centre_px[1]);
+                d < 0.5 * k.radius_px.min(bore.radius_px)
+            });
+            if !duplicate {
+                kept.push(bore);
+            }
+        }
+        kept.sort_by(|a, b| {
+            a.centre_px[1]
+                .total_cmp(&b.centre_px[1])
+                .then(a.centre_px[0].total_cmp(&b.centre_px[0]))
+        });
+        kept
+    }
+
+    fn measure_candidate(
+        &self,
+        filtered: &GrayImage,
+        canny: Option<&GrayImage>,
+        contour: &Contour,
+    ) -> Option<Bore> {
+        let p = &self.params;
+        let min_points = (0.5 * TAU * p.min_radius_px) as usize;
+        let max_points = (4.0 * TAU * p.max_radius_px) as usize;
+        if contour.points_px.len() < min_points || contour.points_px.len() > max_points {
+            return None;
+        }
+        let border: Vec<[f64; 2]> = contour
+            .points_px
+            .iter()
+            .map(|q| [f64::from(q[0]), f64::from(q[1])])
+            .collect();
+        let coarse = fit_kasa(&border).ok()?;
+        // The hole border lies on the bright side, about half a pixel outside the edge.
+        if coarse.radius < p.min_radius_px - 1.0
+            || coarse.radius > p.max_radius_px + 1.0
+            || coarse.rms_residual > 0.2 * coarse.radius
+        {
+            return None;
+        }
+        let ray_count = ((TAU * coarse.radius).round() as usize).clamp(180, 1024);
+        let coarse_radii = binned_radii(&border, coarse.centre, ray_count, coarse.radius);
+
+        let mut edges = Vec::with_capacity(ray_count);
+        for (i, &rho) in coarse_radii.iter().enumerate() {
+            let angle = TAU * i as f64 / ray_count as f64;
+            if let Some(e) = refine_ray(filtered, coarse.centre, angle, rho, &p.rays) {
+                edges.push(e);
+            }
+        }
+        if (edges.len() as f64) < p.min_valid_share * ray_count as f64 {
+            return None;
+        }
+        let mut ratios: Vec<f64> = edges
+            .iter()
+            .map(|e| (e.outer_level - e.inner_level) / e.outer_level.max(1.0))
+            .collect();
+        let contrast_ratio = median(&mut ratios);
+        let mut contrasts: Vec<f64> = edges
+            .iter()
+            .map(|e| e.outer_level - e.inner_level)
+            .collect();
+        if contrast_ratio < p.min_contrast_ratio || median(&mut contrasts) < p.min_contrast_levels {
+            return None;
+        }
+        let outer_ratio = self.ring_test(filtered, coarse.centre, &edges)?;
+
+        let (points, fit, profile) = match p.edge_mode {
+            EdgeMode::SubPixel => {
+                let points: Vec<[f64; 2]> = edges.iter().map(|e| e.point_px).collect();
+                let (points, fit, profile) = fit_with_rejection(points, p.max_upr)?;
+                (points, fit, profile)
+            }
+            EdgeMode::IntegerContour => integer_fit(border, p.max_upr)?,
+            EdgeMode::Canny => {
+                let edge_map = canny?;
+                let points = canny_points(edge_map, coarse.centre, &coarse_radii);
+                integer_fit(points, p.max_upr)?
+            }
+        };
+        if profile.roundness > p.max_roundness_ratio * fit.radius
+            || fit.radius < p.min_radius_px
+            || fit.radius > p.max_radius_px
+        {
+            return None;
+        }
+        let roundness_px = match p.edge_mode {
+            EdgeMode::SubPixel => profile.roundness,
+            EdgeMode::IntegerContour | EdgeMode::Canny => raw_roundness(&points, fit.centre),
+        };
+        let n = points.len() as f64;
+        let sigma = profile.noise_sigma();
+        Some(Bore {
+            centre_px: fit.centre,
+            radius_px: fit.radius,
+            roundness_px,
+            centre_sigma_px: sigma * (2.0 / n).sqrt(),
+            radius_sigma_px: sigma / n.sqrt(),
+            roundness_sigma_px: profile.roundness_sigma(),
+            edge_points_px: points,
+            contrast_ratio,
+            outer_ratio,
+        })
+    }
+
+    /// Test 4: the rim closes within `max_outer_ratio` and is wide enough. Returns the median
+    /// outer-to-inner radius ratio.
+    fn ring_test(
+        &self,
+        filtered: &GrayImage,
+        centre: [f64; 2],
+        edges: &[crate::perception::subpixel::EdgePoint],
+    ) -> Option<f64> {
+        let p = &self.params;
+        // Every fourth ray is plenty for a statistic over directions.
+        let sampled: Vec<_> = edges.iter().step_by(4).collect();
+        let mut ratios = Vec::with_capacity(sampled.len());
+        let mut widths = Vec::with_capacity(sampled.len());
+        for e in &sampled {
+            let deep = e.inner_level + 0.35 * (e.outer_level - e.inner_level);
+            let (s, c) = e.angle_rad.sin_cos();
+            let limit = p.max_outer_ratio * e.radius_px;
+            let mut t = e.radius_px + 2.0;
+            while t <= limit {
+                if sample_bilinear(filtered, centre[0] + t * c, centre[1] + t * s) < deep {
+                    ratios.push(t / e.radius_px);
+                    widths.push(t - e.radius_px);
+                    break;
+                }
+                t += 1.0;
+            }
+        }
+        if (ratios.len() as f64) < p.min_closed_share * sampled.len() as f64 {
+            return None;
+        }
+        if median(&mut widths) < p.min_ring_width_px {
+            return None;
+        }
+        Some(median(&mut ratios))
+    }
+}
+
+/// Mean coarse radius per angular bin about `centre`; empty bins interpolated circularly.
+fn binned_radii(points: &[[f64; 2]], centre: [f64; 2], bins: usize, fallback: f64) -> Vec<f64> {
+    let mut sum = vec![0.0f64; bins];
+    let mut count = vec![0u32; bins];
+    for q in points {
+        let (dx, dy) = (q[0] - centre[0], q[1] - centre[1]);
+        let angle = dy.atan2(dx).rem_euclid(TAU);
+        let bin = ((angle / TAU * bins as f64).round() as usize) % bins;
+        sum[bin] += dx.hypot(dy);
+        count[bin] += 1;
+    }
+    let filled: Vec<usize> = (0..bins).filter(|&i| count[i] > 0).collect();
+    if filled.is_empty() {
+        return vec![fallback; bins];
+    }
+    let value = |i: usize| sum[i] / f64::from(count[i]);
+    let mut radii = vec![0.0; bins];
+    for (k, &i) in filled.iter().enumerate() {
+        let j = filled[(k + 1) % filled.len()];
+        let gap = (j + bins - i) % bins;
+        let gap = if gap == 0 { bins } else { gap };
+        for step in 0..gap {
+            let f = step as f64 / gap as f64;
+            radii[(i + step) % bins] = (1.0 - f) * value(i) + f * value(j);
+        }
+    }
+    radii
+}
+
+/// Geometric fit, then one round of dropping points far from the filtered profile.
+fn fit_with_rejection(
+    points: Vec<[f64; 2]>,
+    max_upr: usize,
+) -> Option<(Vec<[f64; 2]>, CircleFit, RoundnessProfile)> {
+    let fit = fit_geometric(&points).ok()?;
+    let profile = filtered_roundness(&points, fit.centre, max_upr).ok()?;
+    let residuals: Vec<f64> = points
+        .iter()
+        .map(|q| {
+            let (dx, dy) = (q[0] - fit.centre[0], q[1] - fit.centre[1]);
+            dx.hypot(dy) - profile.radius_at(dy.atan2(dx))
+        })
+        .collect();
+    let mut abs: Vec<f64> = residuals.iter().map(|r| r.abs()).collect();
+    let limit = (4.0 * 1.4826 * median(&mut abs)).max(0.25);
+    let kept: Vec<[f64; 2]> = points
+        .iter()
+        .zip(&residuals)
+        .filter(|(_, r)| r.abs() <= limit)
+        .map(|(q, _)| *q)
+        .collect();
+    if kept.len() == points.len() {
+        return Some((points, fit, profile));
+    }
+    let fit = refine_geometric(&kept, fit).ok()?;
+    let profile = filtered_roundness(&kept, fit.centre, max_upr).ok()?;
+    Some((kept, fit, profile))
+}
+
+/// The classic fit on integer points: geometric circle, profile only for the noise estimate.
+fn integer_fit(
+    points: Vec<[f64; 2]>,
+    max_upr: usize,
+) -> Option<(Vec<[f64; 2]>, CircleFit, RoundnessProfile)> {
+    let fit = fit_geometric(&points).ok()?;
+    let profile = filtered_roundness(&points, fit.centre, max_upr).ok()?;
+    Some((points, fit, profile))
+}
+
+/// Canny edge pixels within 2.5 px of the coarse outline.
+fn canny_points(edge_map: &GrayImage, centre: [f64; 2], coarse_radii: &[f64]) -> Vec<[f64; 2]> {
+    let bins = coarse_radii.len();
+    let r_max = coarse_radii.iter().copied().fold(0.0, f64::max) + 3.0;
+    let (w, h) = (edge_map.width() as i64, edge_map.height() as i64);
+    let x0 = ((centre[0] - r_max).floor() as i64).max(0);
+    let x1 = ((centre[0] + r_max).ceil() as i64).min(w - 1);
+    let y0 = ((centre[1] - r_max).floor() as i64).max(0);
+    let y1 = ((centre[1] + r_max).ceil() as i64).min(h - 1);
+    let mut points = Vec::new();
+    for y in y0..=y1 {
+        for x in x0..=x1 {
+            if edge_map.as_raw()[(y * w + x) as usize] == 0 {
+                continue;
+            }
+            let (dx, dy) = (x as f64 - centre[0], y as f64 - centre[1]);
+            let bin = ((dy.atan2(dx).rem_euclid(TAU) / TAU * bins as f64).round() as usize) % bins;
+            if (dx.hypot(dy) - coarse_radii[bin]).abs() <= 2.5 {
+                points.push([x as f64, y as f64]);
+            }
+        }
+    }
+    points
+}
+
+/// Median of `values` (reordered); 0 for an empty slice.
+fn median(values: &mut [f64]) -> f64 {
+    if values.is_empty() {
+        return 0.0;
+    }
+    let mid = values.len() / 2;
+    let (_, m, _) = values.select_nth_unstable_by(mid, f64::total_cmp);
+    *m
+}

@@ -1,0 +1,207 @@
+//! Camera calibration for metrology: pinhole intrinsics, the camera pose and the end-face plane.
+//!
+//! Conventions: the camera frame is x right, y down, z forward (along the optical axis), so a
+//! pixel `(u, v)` (pixel centres at integers) views the ray `((u - cx) / fx, (v - cy) / fy, 1)`.
+//! The world's z axis points up; tube end faces lie in the plane `z = end_face_height_m`.
+//! No lens distortion is modelled (the rendered camera has none). Units: metres, radians.
+
+use crate::perception::bore::Bore;
+use crate::perception::circle_fit::fit_geometric;
+use crate::perception::error::PerceptionError;
+use crate::perception::roundness::filtered_roundness;
+use nalgebra::{Isometry3, Point3, Vector3};
+
+/// A calibrated pinhole camera looking at the end-face plane.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CameraCalibration {
+    /// Focal length along x, pixels.
+    pub fx_px: f64,
+    /// Focal length along y, pixels.
+    pub fy_px: f64,
+    /// Principal point x, pixels.
+    pub cx_px: f64,
+    /// Principal point y, pixels.
+    pub cy_px: f64,
+    /// Camera pose in the world.
+    pub world_from_camera: Isometry3<f64>,
+    /// Height of the tubes' end faces above the world origin.
+    pub end_face_height_m: f64,
+}
+
+/// A bore measured on the end-face plane, metres.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PlaneBore {
+    /// Centre on the end-face plane, world frame.
+    pub centre_in_world: Point3<f64>,
+    /// Diameter of the fitted circle.
+    pub diameter_m: f64,
+    /// `Rmax - Rmin` about the fitted centre.
+    pub roundness_m: f64,
+    /// One-sigma uncertainty of each centre coordinate.
+    pub centre_sigma_m: f64,
+    /// One-sigma uncertainty of the diameter.
+    pub diameter_sigma_m: f64,
+    /// One-sigma uncertainty of the roundness.
+    pub roundness_sigma_m: f64,
+}
+
+/// A [`PlaneBore`] in millimetres, for reports.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct PlaneBoreReportMm {
+    /// Centre x, world frame.
+    pub x_mm: f64,
+    /// Centre y, world frame.
+    pub y_mm: f64,
+    /// Diameter.
+    pub diameter_mm: f64,
+    /// Roundness.
+    pub roundness_mm: f64,
+    /// One-sigma centre uncertainty.
+    pub centre_sigma_mm: f64,
+    /// One-sigma diameter uncertainty.
+    pub diameter_sigma_mm: f64,
+    /// One-sigma roundness uncertainty.
+    pub roundness_sigma_mm: f64,
+}
+
+impl PlaneBore {
+    /// The same measurement in millimetres.
+    pub fn report_mm(&self) -> PlaneBoreReportMm {
+        PlaneBoreReportMm {
+            x_mm: self.centre_in_world.x * 1e3,
+            y_mm: self.centre_in_world.y * 1e3,
+            diameter_mm: self.diameter_m * 1e3,
+            roundness_mm: self.roundness_m * 1e3,
+            centre_sigma_mm: self.centre_sigma_m * 1e3,
+            diameter_sigma_mm: self.diameter_sigma_m * 1e3,
+            roundness_sigma_mm: self.roundness_sigma_m * 1e3,
+        }
+    }
+}
+
+impl CameraCalibration {
+    /// Where the ray through pixel `(x_px, y_px)` meets the end-face plane, world frame.
+    pub fn pixel_to_plane(&self, x_px: f64, y_px: f64) -> Result<Point3<f64>, PerceptionError> {
+        let ray_in_camera = Vector3::new(
+            (x_px - self.cx_px) / self.fx_px,
+            (y_px - self.cy_px) / self.fy_px,
+            1.0,
+        );
+        let ray_in_world = self.world_from_camera.rotation * ray_in_camera;
+        let origin_in_world = Point3::from(self.world_from_camera.translation.vector);
+        let t = (self.end_face_height_m - origin_in_world.z) / ray_in_world.z;
+        if !t.is_finite() || t <= 0.0 {
+            return Err(PerceptionError::RayMissesPlane { x_px, y_px });
+        }
+        Ok(origin_in_world + ray_in_world * t)
+    }
+
+    /// Pixel of a world point (the inverse of [`Self::pixel_to_plane`] on the plane).
+    pub fn project(&self, point_in_world: &Point3<f64>) -> Option<[f64; 2]> {
+        let point_in_camera = self
+            .world_from_camera
+            .inverse_transform_point(point_in_world);
+        if point_in_camera.z <= 0.0 {
+            return None;
+        }
+        Some([
+            self.fx_px * point_in_camera.x / point_in_camera.z + self.cx_px,
+            self.fy_px * point_in_camera.y / point_in_camera.z + self.cy_px,
+        ])
+    }
+
+    /// Measures `bore` on the end-face plane: its edge points are back-projected onto the plane
+    /// and fitted there, so perspective and camera tilt do not distort the result.
+    pub fn measure_on_plane(
+        &self,
+        bore: &Bore,
+        max_upr: usize,
+    ) -> Result<PlaneBore, PerceptionError> {
+        let points_in_world = bore
+            .edge_points_px
+            .iter()
+            .map(|p| self.pixel_to_plane(p[0], p[1]))
+            .collect::<Result<Vec<_>, _>>()?;
+        let points_on_plane: Vec<[f64; 2]> = points_in_world.iter().map(|p| [p.x, p.y]).collect();
+        let fit = fit_geometric(&points_on_plane)?;
+        let profile = filtered_roundness(&points_on_plane, fit.centre, max_upr)?;
+        let n = points_on_plane.len() as f64;
+        let sigma = profile.noise_sigma();
+        Ok(PlaneBore {
+            centre_in_world: Point3::new(fit.centre[0], fit.centre[1], self.end_face_height_m),
+            diameter_m: 2.0 * fit.radius,
+            roundness_m: profile.roundness,
+            centre_sigma_m: sigma * (2.0 / n).sqrt(),
+            diameter_sigma_m: 2.0 * sigma / n.sqrt(),
+            roundness_sigma_m: profile.roundness_sigma(),
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::perception::roundness::DEFAULT_MAX_UPR;
+    use nalgebra::{Translation3, UnitQuaternion};
+
+    fn overhead_camera() -> CameraCalibration {
+        // 1 m above the belt, looking straight down (camera z = world -z), slightly rolled.
+        let rotation = UnitQuaternion::from_euler_angles(std::f64::consts::PI, 0.0, 0.3);
+        CameraCalibration {
+            fx_px: 1200.0,
+            fy_px: 1200.0,
+            cx_px: 320.0,
+            cy_px: 240.0,
+            world_from_camera: Isometry3::from_parts(Translation3::new(0.1, -0.05, 1.0), rotation),
+            end_face_height_m: 0.1,
+        }
+    }
+
+    #[test]
+    fn project_inverts_pixel_to_plane() {
+        let calibration = overhead_camera();
+        let Ok(point) = calibration.pixel_to_plane(100.5, 400.25) else {
+            panic!("ray misses");
+        };
+        assert!((point.z - 0.1).abs() < 1e-12);
+        let Some(pixel) = calibration.project(&point) else {
+            panic!("behind camera");
+        };
+        assert!((pixel[0] - 100.5).abs() < 1e-9 && (pixel[1] - 400.25).abs() < 1e-9);
+    }
+
+    #[test]
+    fn a_circle_on_the_plane_measures_its_diameter() {
+        let calibration = overhead_camera();
+        let (centre, radius_m) = (Point3::new(0.12, -0.03, 0.1), 0.02);
+        let edge_points_px: Vec<[f64; 2]> = (0..720)
+            .filter_map(|i| {
+                let t = std::f64::consts::TAU * f64::from(i) / 720.0;
+                calibration.project(&Point3::new(
+                    centre.x + radius_m * t.cos(),
+                    centre.y + radius_m * t.sin(),
+                    0.1,
+                ))
+            })
+            .collect();
+        let bore = Bore {
+            centre_px: [0.0, 0.0],
+            radius_px: 0.0,
+            roundness_px: 0.0,
+            centre_sigma_px: 0.0,
+            radius_sigma_px: 0.0,
+            roundness_sigma_px: 0.0,
+            edge_points_px,
+            contrast_ratio: 1.0,
+            outer_ratio: 1.5,
+        };
+        let Ok(measured) = calibration.measure_on_plane(&bore, DEFAULT_MAX_UPR) else {
+            panic!("measure failed");
+        };
+        assert!((measured.diameter_m - 0.04).abs() < 1e-9);
+        assert!((measured.centre_in_world - centre).norm() < 1e-9);
+        assert!(measured.roundness_m < 1e-9);
+        let report = measured.report_mm();
+        assert!((report.diameter_mm - 40.0).abs() < 1e-6);
+    }
+}

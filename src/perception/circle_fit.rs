@@ -1,0 +1,265 @@
+//! Least-squares circle fits (seed paper section 2.5): algebraic (Kasa, Pratt) for a start,
+//! then geometric (Gauss-Newton on the orthogonal distances) for the result.
+//!
+//! Units are those of the points (pixels in the image, metres on the end-face plane).
+
+use crate::perception::error::PerceptionError;
+use nalgebra::{Matrix3, Vector3};
+
+/// A fitted circle, in the units of the points it was fitted to.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CircleFit {
+    /// Centre `[x, y]`.
+    pub centre: [f64; 2],
+    /// Radius.
+    pub radius: f64,
+    /// Root mean square of the geometric residuals `|p - c| - r`.
+    pub rms_residual: f64,
+    /// Number of points fitted.
+    pub point_count: usize,
+}
+
+/// Centroid and points shifted to it (conditioning for the algebraic fits).
+fn centred(points: &[[f64; 2]]) -> Result<([f64; 2], Vec<[f64; 2]>), PerceptionError> {
+    if points.len() < 3 {
+        return Err(PerceptionError::DegenerateFit {
+            point_count: points.len(),
+        });
+    }
+    let n = points.len() as f64;
+    let mean = [
+        points.iter().map(|p| p[0]).sum::<f64>() / n,
+        points.iter().map(|p| p[1]).sum::<f64>() / n,
+    ];
+    Ok((
+        mean,
+        points
+            .iter()
+            .map(|p| [p[0] - mean[0], p[1] - mean[1]])
+            .collect(),
+    ))
+}
+
+fn finish(
+    points: &[[f64; 2]],
+    centre: [f64; 2],
+    radius: f64,
+) -> Result<CircleFit, PerceptionError> {
+    if !(centre[0].is_finite() && centre[1].is_finite() && radius.is_finite() && radius > 0.0) {
+        return Err(PerceptionError::DegenerateFit {
+            point_count: points.len(),
+        });
+    }
+    let sum_sq: f64 = points
+        .iter()
+        .map(|p| ((p[0] - centre[0]).hypot(p[1] - centre[1]) - radius).powi(2))
+        .sum();
+    Ok(CircleFit {
+        centre,
+        radius,
+        rms_residual: (sum_sq / points.len() as f64).sqrt(),
+        point_count: points.len(),
+    })
+}
+
+/// Kasa's algebraic fit: minimises `sum (x^2 + y^2 + D x + E y + F)^2`. Fast, biased towards
+/// smaller circles on short arcs.
+pub fn fit_kasa(points: &[[f64; 2]]) -> Result<CircleFit, PerceptionError> {
+    let (mean, q) = centred(points)?;
+    let mut normal = Matrix3::<f64>::zeros();
+    let mut rhs = Vector3::<f64>::zeros();
+    for p in &q {
+        let row = Vector3::new(p[0], p[1], 1.0);
+        let z = p[0] * p[0] + p[1] * p[1];
+        normal += row * row.transpose();
+        rhs -= row * z;
+    }
+    let Some(solution) = normal.lu().solve(&rhs) else {
+        return Err(PerceptionError::DegenerateFit {
+            point_count: points.len(),
+        });
+    };
+    let (a, b) = (-solution[0] / 2.0, -solution[1] / 2.0);
+    let radius = (a * a + b * b - solution[2]).sqrt();
+    finish(points, [a + mean[0], b + mean[1]], radius)
+}
+
+/// Pratt's algebraic fit (Chernov's Newton solution of its characteristic polynomial): nearly
+/// unbiased, a better start than Kasa on partial arcs.
+pub fn fit_pratt(points: &[[f64; 2]]) -> Result<CircleFit, PerceptionError> {
+    let (mean, q) = centred(points)?;
+    let n = q.len() as f64;
+    let (mut mxx, mut myy, mut mxy, mut mxz, mut myz, mut mzz) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+    for p in &q {
+        let (x, y) = (p[0], p[1]);
+        let z = x * x + y * y;
+        mxx += x * x;
+        myy += y * y;
+        mxy += x * y;
+        mxz += x * z;
+        myz += y * z;
+        mzz += z * z;
+    }
+    let (mxx, myy, mxy, mxz, myz, mzz) = (mxx / n, myy / n, mxy / n, mxz / n, myz / n, mzz / n);
+    let mz = mxx + myy;
+    let cov_xy = mxx * myy - mxy * mxy;
+    let a2 = 4.0 * cov_xy - 3.0 * mz * mz - mzz;
+    let a1 = mzz * mz + 4.0 * cov_xy * mz - mxz * mxz - myz * myz - mz * mz * mz;
+    let a0 =
+        mxz * mxz * myy + myz * myz * mxx - mzz * cov_xy - 2.0 * mxz * myz * mxy + mz * mz * cov_xy;
+    let mut x = 0.0f64;
+    let mut y = f64::INFINITY;
+    for _ in 0..30 {
+        let y_new = a0 + x * (a1 + x * (a2 + 4.0 * x * x));
+        if y_new.abs() > y.abs() {
+            x = 0.0;
+            break;
+        }
+        y = y_new;
+        let dy = a1 + x * (2.0 * a2 + 16.0 * x * x);
+        let x_new = x - y / dy;
+        if !x_new.is_finite() || x_new < 0.0 {
+            x = 0.0;
+            break;
+        }
+        let converged = (x_new - x).abs() <= 1e-14 * x_new.abs().max(1e-300);
+        x = x_new;
+        if converged {
+            break;
+        }
+    }
+    let det = x * x - x * mz + cov_xy;
+    let cx = (mxz * (myy - x) - myz * mxy) / det / 2.0;
+    let cy = (myz * (mxx - x) - mxz * mxy) / det / 2.0;
+    let radius = (cx * cx + cy * cy + mz + 2.0 * x).sqrt();
+    finish(points, [cx + mean[0], cy + mean[1]], radius)
+}
+
+/// Geometric fit: Gauss-Newton on `sum (|p - c| - r)^2`, started from Pratt's fit.
+pub fn fit_geometric(points: &[[f64; 2]]) -> Result<CircleFit, PerceptionError> {
+    let start = fit_pratt(points).or_else(|_| fit_kasa(points))?;
+    refine_geometric(points, start)
+}
+
+/// Gauss-Newton refinement of a circle on `sum (|p - c| - r)^2` from `start`.
+pub fn refine_geometric(
+    points: &[[f64; 2]],
+    start: CircleFit,
+) -> Result<CircleFit, PerceptionError> {
+    let [mut a, mut b] = start.centre;
+    let mut r = start.radius;
+    for _ in 0..50 {
+        let mut jtj = Matrix3::<f64>::zeros();
+        let mut jtr = Vector3::<f64>::zeros();
+        for p in points {
+            let (dx, dy) = (p[0] - a, p[1] - b);
+            let d = dx.hypot(dy);
+            if d <= f64::EPSILON {
+                continue;
+            }
+            let row = Vector3::new(-dx / d, -dy / d, -1.0);
+            let residual = d - r;
+            jtj += row * row.transpose();
+            jtr += row * residual;
+        }
+        let Some(step) = jtj.lu().solve(&(-jtr)) else {
+            return Err(PerceptionError::DegenerateFit {
+                point_count: points.len(),
+            });
+        };
+        a += step[0];
+        b += step[1];
+        r += step[2];
+        if step.norm() <= 1e-12 * r.abs().max(1.0) {
+            break;
+        }
+    }
+    finish(points, [a, b], r)
+}
+
+/// Roundness by eq. 11: `Rmax - Rmin` of the points' distances from `centre`.
+pub fn raw_roundness(points: &[[f64; 2]], centre: [f64; 2]) -> f64 {
+    let (mut min, mut max) = (f64::INFINITY, f64::NEG_INFINITY);
+    for p in points {
+        let d = (p[0] - centre[0]).hypot(p[1] - centre[1]);
+        min = min.min(d);
+        max = max.max(d);
+    }
+    if min.is_finite() { max - min } else { 0.0 }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::perception::synthetic::SplitMix64;
+    use proptest::prelude::*;
+
+    fn noisy_circle(
+        cx: f64,
+        cy: f64,
+        r: f64,
+        n: usize,
+        sigma: f64,
+        arc: f64,
+        seed: u64,
+    ) -> Vec<[f64; 2]> {
+        let mut rng = SplitMix64::new(seed);
+        (0..n)
+            .map(|i| {
+                let t = arc * i as f64 / n as f64;
+                let rr = r + sigma * rng.gaussian();
+                [cx + rr * t.cos(), cy + rr * t.sin()]
+            })
+            .collect()
+    }
+
+    proptest! {
+        #[test]
+        fn every_fit_recovers_an_exact_circle(
+            cx in -500.0f64..500.0, cy in -500.0f64..500.0, r in 1.0f64..300.0, n in 5usize..200
+        ) {
+            let points = noisy_circle(cx, cy, r, n, 0.0, std::f64::consts::TAU, 1);
+            for fit in [fit_kasa(&points), fit_pratt(&points), fit_geometric(&points)] {
+                let fit = fit.map_err(|e| TestCaseError::fail(e.to_string()))?;
+                prop_assert!((fit.centre[0] - cx).abs() < 1e-6 * r.max(1.0));
+                prop_assert!((fit.centre[1] - cy).abs() < 1e-6 * r.max(1.0));
+                prop_assert!((fit.radius - r).abs() < 1e-6 * r.max(1.0));
+            }
+        }
+
+        #[test]
+        fn geometric_fit_recovers_a_noisy_circle(
+            cx in 0.0f64..640.0, cy in 0.0f64..480.0, r in 15.0f64..150.0, seed in any::<u64>()
+        ) {
+            let sigma = 0.2;
+            let n = 400;
+            let fit = fit_geometric(&noisy_circle(cx, cy, r, n, sigma, std::f64::consts::TAU, seed))
+                .map_err(|e| TestCaseError::fail(e.to_string()))?;
+            // Five standard errors of the centre (sigma * sqrt(2 / n)) and the radius.
+            let tol = 5.0 * sigma * (2.0 / n as f64).sqrt();
+            prop_assert!((fit.centre[0] - cx).abs() < tol);
+            prop_assert!((fit.centre[1] - cy).abs() < tol);
+            prop_assert!((fit.radius - r).abs() < tol);
+            prop_assert!((fit.rms_residual - sigma).abs() < 0.3 * sigma);
+        }
+
+        #[test]
+        fn pratt_and_geometric_beat_kasa_on_a_half_arc(seed in any::<u64>()) {
+            let points = noisy_circle(0.0, 0.0, 50.0, 200, 1.0, std::f64::consts::PI, seed);
+            let geometric = fit_geometric(&points).map_err(|e| TestCaseError::fail(e.to_string()))?;
+            prop_assert!((geometric.radius - 50.0).abs() < 1.0);
+        }
+    }
+
+    #[test]
+    fn too_few_or_collinear_points_are_errors() {
+        assert!(fit_kasa(&[[0.0, 0.0], [1.0, 1.0]]).is_err());
+        assert!(fit_geometric(&[[0.0, 0.0], [1.0, 1.0], [2.0, 2.0], [3.0, 3.0]]).is_err());
+    }
+
+    #[test]
+    fn raw_roundness_of_a_square_is_the_diagonal_excess() {
+        let square = [[1.0, 0.0], [0.0, 1.0], [-1.0, 0.0], [0.0, -1.0], [1.0, 1.0]];
+        assert!((raw_roundness(&square, [0.0, 0.0]) - (2f64.sqrt() - 1.0)).abs() < 1e-12);
+    }
+}

@@ -1,0 +1,169 @@
+//! Denoising filters of the seed paper, eqs. 9-10: mean, median and Gaussian.
+//!
+//! All filters replicate the border pixels. The 3x3 median is our own kernel: the benchmark
+//! (`benches/metrology.rs`, stage `median3_imageproc` vs `median3`) shows imageproc's sliding
+//! histogram median is the pipeline's bottleneck at radius 1; imageproc stays the oracle in tests.
+
+use image::GrayImage;
+
+/// A denoising filter and its size.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub enum FilterMethod {
+    /// Mean of a `(2r+1)^2` window (eq. 9).
+    Mean {
+        /// Window radius.
+        radius_px: u32,
+    },
+    /// Median of a `(2r+1)^2` window (eq. 10).
+    Median {
+        /// Window radius.
+        radius_px: u32,
+    },
+    /// Gaussian smoothing.
+    Gaussian {
+        /// Standard deviation.
+        sigma_px: f32,
+    },
+}
+
+impl FilterMethod {
+    /// Short name for tables.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Self::Mean { .. } => "mean",
+            Self::Median { .. } => "median",
+            Self::Gaussian { .. } => "gaussian",
+        }
+    }
+
+    /// Applies the filter.
+    pub fn apply(&self, image: &GrayImage) -> GrayImage {
+        match *self {
+            Self::Mean { radius_px } => mean_filter(image, radius_px),
+            Self::Median { radius_px } => median_filter(image, radius_px),
+            Self::Gaussian { sigma_px } => gaussian_filter(image, sigma_px),
+        }
+    }
+}
+
+/// Mean (box) filter of radius `radius_px`.
+pub fn mean_filter(image: &GrayImage, radius_px: u32) -> GrayImage {
+    imageproc::filter::box_filter(image, radius_px, radius_px)
+}
+
+/// Median filter of radius `radius_px`; radius 1 uses the fast [`median_3x3`].
+pub fn median_filter(image: &GrayImage, radius_px: u32) -> GrayImage {
+    match radius_px {
+        0 => image.clone(),
+        1 => median_3x3(image),
+        r => imageproc::filter::median_filter(image, r, r),
+    }
+}
+
+/// Gaussian filter of standard deviation `sigma_px` (no-op for `sigma_px <= 0`).
+pub fn gaussian_filter(image: &GrayImage, sigma_px: f32) -> GrayImage {
+    if sigma_px <= 0.0 {
+        return image.clone();
+    }
+    imageproc::filter::gaussian_blur_f32(image, sigma_px)
+}
+
+/// 3x3 median with replicated borders, equal to `imageproc::filter::median_filter(image, 1, 1)`.
+///
+/// Each column triple is sorted once (min, mid, max) and shared by three output pixels; the
+/// median of nine is then `med(max of mins, med of mids, min of maxes)`. Written as branch-free
+/// min/max over rows so the compiler vectorises it.
+pub fn median_3x3(image: &GrayImage) -> GrayImage {
+    let (w, h) = (image.width() as usize, image.height() as usize);
+    let mut out = GrayImage::new(image.width(), image.height());
+    if w == 0 || h == 0 {
+        return out;
+    }
+    let src = image.as_raw();
+    let dst: &mut [u8] = &mut out;
+    // Rows padded by one replicated pixel on each side.
+    let pw = w + 2;
+    let mut lo = vec![0u8; pw];
+    let mut mid = vec![0u8; pw];
+    let mut hi = vec![0u8; pw];
+    let mut padded = [vec![0u8; pw], vec![0u8; pw], vec![0u8; pw]];
+    let pad_row = |row: &[u8], dst: &mut [u8]| {
+        dst[1..=w].copy_from_slice(row);
+        dst[0] = row[0];
+        dst[w + 1] = row[w - 1];
+    };
+    for y in 0..h {
+        let rows = [y.saturating_sub(1), y, (y + 1).min(h - 1)];
+        for (buf, &r) in padded.iter_mut().zip(rows.iter()) {
+            pad_row(&src[r * w..(r + 1) * w], buf);
+        }
+        let (a, b, c) = (&padded[0], &padded[1], &padded[2]);
+        for i in 0..pw {
+            let (p, q, r) = (a[i], b[i], c[i]);
+            let (s0, s1) = (p.min(q), p.max(q));
+            let s2 = s1.min(r);
+            hi[i] = s1.max(r);
+            lo[i] = s0.min(s2);
+            mid[i] = s0.max(s2);
+        }
+        let out_row = &mut dst[y * w..(y + 1) * w];
+        for (x, o) in out_row.iter_mut().enumerate() {
+            let max_lo = lo[x].max(lo[x + 1]).max(lo[x + 2]);
+            let min_hi = hi[x].min(hi[x + 1]).min(hi[x + 2]);
+            let (m0, m1, m2) = (mid[x], mid[x + 1], mid[x + 2]);
+            let med_mid = m0.min(m1).max(m0.max(m1).min(m2));
+            *o = median3(max_lo, med_mid, min_hi);
+        }
+    }
+    out
+}
+
+#[inline]
+fn median3(a: u8, b: u8, c: u8) -> u8 {
+    a.min(b).max(a.max(b).min(c))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn image_from(width: u32, height: u32, data: Vec<u8>) -> GrayImage {
+        GrayImage::from_raw(width, height, data).unwrap_or_else(|| GrayImage::new(1, 1))
+    }
+
+    proptest! {
+        #[test]
+        fn median_3x3_matches_imageproc(
+            (w, h, data) in (1u32..24, 1u32..24).prop_flat_map(|(w, h)| {
+                (Just(w), Just(h), proptest::collection::vec(any::<u8>(), (w * h) as usize))
+            })
+        ) {
+            let image = image_from(w, h, data);
+            let ours = median_3x3(&image);
+            let oracle = imageproc::filter::median_filter(&image, 1, 1);
+            prop_assert_eq!(ours.as_raw(), oracle.as_raw());
+        }
+
+        #[test]
+        fn filters_keep_a_constant_image(level in any::<u8>(), radius in 1u32..4) {
+            let image = GrayImage::from_pixel(17, 11, image::Luma([level]));
+            for method in [
+                FilterMethod::Mean { radius_px: radius },
+                FilterMethod::Median { radius_px: radius },
+            ] {
+                prop_assert!(method.apply(&image).pixels().all(|p| p[0] == level));
+            }
+            // imageproc's f32 Gaussian truncates after each of its two passes.
+            let gaussian = FilterMethod::Gaussian { sigma_px: radius as f32 }.apply(&image);
+            prop_assert!(gaussian.pixels().all(|p| p[0].abs_diff(level) <= 2));
+        }
+    }
+
+    #[test]
+    fn median_removes_an_impulse() {
+        let mut image = GrayImage::from_pixel(5, 5, image::Luma([10]));
+        image.put_pixel(2, 2, image::Luma([255]));
+        assert!(median_3x3(&image).pixels().all(|p| p[0] == 10));
+    }
+}

@@ -1,0 +1,687 @@
+//! Seeded synthetic end-face images with known truth, for tests, benchmarks and `--compare`.
+//!
+//! Every edge is anti-aliased by 8x8 supersampling of the pixel's area (pixel `(i, j)` covers
+//! `[i - 0.5, i + 0.5] x [j - 0.5, j + 0.5]`, so integer coordinates sit at pixel centres, as in the
+//! command-line contract). Reflectance is multiplied by a smooth illumination field (linear gradient
+//! and radial vignetting), then Gaussian sensor noise and salt-and-pepper impulses are added.
+
+use image::{GrayImage, Luma};
+use std::f64::consts::{PI, TAU};
+
+/// Small deterministic PRNG (SplitMix64): the same seed gives the same scene on every platform.
+#[derive(Debug, Clone)]
+pub struct SplitMix64 {
+    state: u64,
+}
+
+impl SplitMix64 {
+    /// A generator seeded with `seed`.
+    pub fn new(seed: u64) -> Self {
+        Self { state: seed }
+    }
+
+    /// Next 64 random bits.
+    pub fn next_u64(&mut self) -> u64 {
+        self.state = self.state.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.state;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+
+    /// Uniform in `[0, 1)`.
+    pub fn unit(&mut self) -> f64 {
+        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
+    }
+
+    /// Uniform in `[low, high)`.
+    pub fn range(&mut self, low: f64, high: f64) -> f64 {
+        low + (high - low) * self.unit()
+    }
+
+    /// Standard normal (Box-Muller).
+    pub fn gaussian(&mut self) -> f64 {
+        let u1 = self.unit().max(1e-300);
+        let u2 = self.unit();
+        (-2.0 * u1.ln()).sqrt() * (TAU * u2).cos()
+    }
+}
+
+/// The true outline of a bore, as a radius about its centre for each direction.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum BoreShape {
+    /// A perfect circle.
+    Circle {
+        /// Radius.
+        radius_px: f64,
+    },
+    /// An ellipse with semi-axes `a_px >= b_px`, major axis at `angle_rad` from +x.
+    Ellipse {
+        /// Semi-major axis.
+        a_px: f64,
+        /// Semi-minor axis.
+        b_px: f64,
+        /// Direction of the major axis.
+        angle_rad: f64,
+    },
+    /// A lobed bore: `r(theta) = mean + amplitude * cos(lobes * theta + phase)`.
+    Lobed {
+        /// Mean radius.
+        mean_radius_px: f64,
+        /// Lobe amplitude (half the roundness).
+        amplitude_px: f64,
+        /// Number of lobes (2 or 3 in practice).
+        lobes: u32,
+        /// Phase of the lobes.
+        phase_rad: f64,
+    },
+}
+
+impl BoreShape {
+    /// Radius of the outline in direction `theta_rad` (from +x towards +y, image axes).
+    pub fn radius_at(&self, theta_rad: f64) -> f64 {
+        match *self {
+            Self::Circle { radius_px } => radius_px,
+            Self::Ellipse {
+                a_px,
+                b_px,
+                angle_rad,
+            } => {
+                let phi = theta_rad - angle_rad;
+                a_px * b_px / ((b_px * phi.cos()).powi(2) + (a_px * phi.sin()).powi(2)).sqrt()
+            }
+            Self::Lobed {
+                mean_radius_px,
+                amplitude_px,
+                lobes,
+                phase_rad,
+            } => mean_radius_px + amplitude_px * (f64::from(lobes) * theta_rad + phase_rad).cos(),
+        }
+    }
+
+    /// True roundness `Rmax - Rmin` about the true centre.
+    pub fn roundness_px(&self) -> f64 {
+        match *self {
+            Self::Circle { .. } => 0.0,
+            Self::Ellipse { a_px, b_px, .. } => a_px - b_px,
+            Self::Lobed { amplitude_px, .. } => 2.0 * amplitude_px.abs(),
+        }
+    }
+
+    /// Radius of the least-squares circle of the outline sampled uniformly in angle about the
+    /// true centre: the mean of `radius_at` (the centre stays put by symmetry for these shapes).
+    pub fn mean_radius_px(&self) -> f64 {
+        const SAMPLES: usize = 4096;
+        (0..SAMPLES)
+            .map(|i| self.radius_at(TAU * i as f64 / SAMPLES as f64))
+            .sum::<f64>()
+            / SAMPLES as f64
+    }
+
+    /// Largest radius of the outline.
+    pub fn max_radius_px(&self) -> f64 {
+        match *self {
+            Self::Circle { radius_px } => radius_px,
+            Self::Ellipse { a_px, b_px, .. } => a_px.max(b_px),
+            Self::Lobed {
+                mean_radius_px,
+                amplitude_px,
+                ..
+            } => mean_radius_px + amplitude_px.abs(),
+        }
+    }
+}
+
+/// A tube standing upright, seen end-on: a bright annulus around a dark bore.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Tube {
+    /// Bore centre, pixels.
+    pub centre_px: [f64; 2],
+    /// Bore outline.
+    pub bore: BoreShape,
+    /// Outer radius of the end face (the rim's outer edge).
+    pub outer_radius_px: f64,
+    /// Reflectance of the machined rim, grey levels under unit illumination.
+    pub rim_level: f64,
+    /// Reflectance seen down the bore.
+    pub bore_level: f64,
+}
+
+/// A plastic-bottle distractor.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Bottle {
+    /// Standing: a translucent body disc with a small cap on top.
+    Standing {
+        /// Centre, pixels.
+        centre_px: [f64; 2],
+        /// Body radius.
+        body_radius_px: f64,
+        /// Cap radius.
+        cap_radius_px: f64,
+        /// Cap reflectance (dark coloured caps make a dark disc inside a bright-ish ring).
+        cap_level: f64,
+    },
+    /// Lying on its side: a capsule with a cylindrical highlight and a cap at one end.
+    Lying {
+        /// Centre, pixels.
+        centre_px: [f64; 2],
+        /// End-to-end length.
+        length_px: f64,
+        /// Diameter.
+        width_px: f64,
+        /// Direction of the long axis.
+        angle_rad: f64,
+        /// Cap reflectance.
+        cap_level: f64,
+    },
+}
+
+/// An oil stain: an irregular blob that darkens whatever lies under it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Stain {
+    /// Centre, pixels.
+    pub centre_px: [f64; 2],
+    /// Mean radius.
+    pub radius_px: f64,
+    /// Harmonics of the outline: (relative amplitude, phase) for orders 2, 3, ...
+    pub harmonics: Vec<(f64, f64)>,
+    /// Factor applied to the reflectance under the stain (0.55..0.8 typical).
+    pub transmission: f64,
+}
+
+impl Stain {
+    fn radius_at(&self, theta_rad: f64) -> f64 {
+        let wobble: f64 = self
+            .harmonics
+            .iter()
+            .enumerate()
+            .map(|(i, (amp, phase))| amp * ((i as f64 + 2.0) * theta_rad + phase).cos())
+            .sum();
+        self.radius_px * (1.0 + wobble)
+    }
+}
+
+/// Illumination field multiplying the reflectance.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Illumination {
+    /// Relative change across the image width (0.3 = +-15% left to right).
+    pub gradient_x: f64,
+    /// Relative change across the image height.
+    pub gradient_y: f64,
+    /// Relative loss at the image corners (radial, quadratic).
+    pub vignetting: f64,
+}
+
+/// Sensor noise.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Noise {
+    /// Standard deviation of additive Gaussian noise, grey levels.
+    pub sigma: f64,
+    /// Share of pixels replaced by 0 or 255.
+    pub salt_pepper: f64,
+}
+
+/// The truth of one bore, in the contract's pixel convention.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct TruthCircle {
+    /// Centre x.
+    pub cx: f64,
+    /// Centre y.
+    pub cy: f64,
+    /// Mean radius.
+    pub r: f64,
+    /// `Rmax - Rmin` about the true centre.
+    pub roundness: f64,
+}
+
+/// A synthetic scene: a belt with tubes, bottles and stains under some light and noise.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Scene {
+    /// Image width.
+    pub width_px: u32,
+    /// Image height.
+    pub height_px: u32,
+    /// Belt reflectance.
+    pub belt_level: f64,
+    /// Tubes (the bores to find).
+    pub tubes: Vec<Tube>,
+    /// Bottles (never to be reported).
+    pub bottles: Vec<Bottle>,
+    /// Oil stains.
+    pub stains: Vec<Stain>,
+    /// Light.
+    pub illumination: Illumination,
+    /// Sensor noise.
+    pub noise: Noise,
+    /// Seed of the noise.
+    pub noise_seed: u64,
+}
+
+/// How hard a random scene is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Difficulty {
+    /// No noise, even light, no stains or bottles.
+    Clean,
+    /// Moderate sensor noise, a light gradient, a stain and a bottle.
+    Moderate,
+    /// Strong noise, heavy salt-and-pepper, vignetting, stains and bottles.
+    Heavy,
+}
+
+/// Sub-samples per pixel side for anti-aliasing.
+const SUPERSAMPLE: usize = 8;
+/// Radial distance from any outline within which a pixel is supersampled.
+const EDGE_BAND_PX: f64 = 3.0;
+
+impl Scene {
+    /// The truth of every bore in the scene.
+    pub fn truth(&self) -> Vec<TruthCircle> {
+        self.tubes
+            .iter()
+            .map(|t| TruthCircle {
+                cx: t.centre_px[0],
+                cy: t.centre_px[1],
+                r: t.bore.mean_radius_px(),
+                roundness: t.bore.roundness_px(),
+            })
+            .collect()
+    }
+
+    /// Renders the scene into an 8-bit grey image.
+    pub fn render(&self) -> GrayImage {
+        let (w, h) = (self.width_px, self.height_px);
+        let mut rng = SplitMix64::new(self.noise_seed);
+        let mut image = GrayImage::new(w, h);
+        let diag = (f64::from(w).powi(2) + f64::from(h).powi(2)).sqrt() / 2.0;
+        let (cx, cy) = (f64::from(w) / 2.0, f64::from(h) / 2.0);
+        for y in 0..h {
+            for x in 0..w {
+                let (xf, yf) = (f64::from(x), f64::from(y));
+                let reflectance = if self.near_edge(xf, yf) {
+                    let mut sum = 0.0;
+                    for sy in 0..SUPERSAMPLE {
+                        for sx in 0..SUPERSAMPLE {
+                            let ox = (sx as f64 + 0.5) / SUPERSAMPLE as f64 - 0.5;
+                            let oy = (sy as f64 + 0.5) / SUPERSAMPLE as f64 - 0.5;
+                            sum += self.reflectance(xf + ox, yf + oy);
+                        }
+                    }
+                    sum / (SUPERSAMPLE * SUPERSAMPLE) as f64
+                } else {
+                    self.reflectance(xf, yf)
+                };
+                let rho = ((xf - cx).powi(2) + (yf - cy).powi(2)).sqrt() / diag;
+                let light = (1.0
+                    + self.illumination.gradient_x * ((xf - cx) / f64::from(w))
+                    + self.illumination.gradient_y * ((yf - cy) / f64::from(h)))
+                    * (1.0 - self.illumination.vignetting * rho * rho);
+                let mut value = reflectance * light + self.noise.sigma * rng.gaussian();
+                if self.noise.salt_pepper > 0.0 && rng.unit() < self.noise.salt_pepper {
+                    value = if rng.unit() < 0.5 { 0.0 } else { 255.0 };
+                }
+                image.put_pixel(x, y, Luma([value.round().clamp(0.0, 255.0) as u8]));
+            }
+        }
+        image
+    }
+
+    /// Whether any outline passes within the supersampling band of `(x, y)`.
+    fn near_edge(&self, x: f64, y: f64) -> bool {
+        let near_radius = |c: [f64; 2], r: f64| {
+            let rho = ((x - c[0]).powi(2) + (y - c[1]).powi(2)).sqrt();
+            (rho - r).abs() < EDGE_BAND_PX
+        };
+        let angle = |c: [f64; 2]| (y - c[1]).atan2(x - c[0]);
+        self.tubes.iter().any(|t| {
+            near_radius(t.centre_px, t.outer_radius_px)
+                || near_radius(t.centre_px, t.bore.radius_at(angle(t.centre_px)))
+        }) || self
+            .stains
+            .iter()
+            .any(|s| near_radius(s.centre_px, s.radius_at(angle(s.centre_px))))
+            || self.bottles.iter().any(|b| match *b {
+                Bottle::Standing {
+                    centre_px,
+                    body_radius_px,
+                    cap_radius_px,
+                    ..
+                } => {
+                    near_radius(centre_px, body_radius_px) || near_radius(centre_px, cap_radius_px)
+                }
+                Bottle::Lying {
+                    centre_px,
+                    length_px,
+                    width_px,
+                    angle_rad,
+                    ..
+                } => {
+                    let d = capsule_distance(x, y, centre_px, length_px, width_px, angle_rad);
+                    let cap = lying_cap_distance(x, y, centre_px, length_px, width_px, angle_rad);
+                    d.abs() < EDGE_BAND_PX || cap.abs() < EDGE_BAND_PX
+                }
+            })
+    }
+
+    /// Reflectance at a continuous point.
+    fn reflectance(&self, x: f64, y: f64) -> f64 {
+        let mut value = self.belt_level;
+        for bottle in &self.bottles {
+            if let Some(v) = bottle_reflectance(bottle, x, y) {
+                value = v;
+            }
+        }
+        for tube in &self.tubes {
+            let (dx, dy) = (x - tube.centre_px[0], y - tube.centre_px[1]);
+            let rho = (dx * dx + dy * dy).sqrt();
+            if rho < tube.outer_radius_px {
+                value = if rho < tube.bore.radius_at(dy.atan2(dx)) {
+                    tube.bore_level
+                } else {
+                    tube.rim_level
+                };
+            }
+        }
+        for stain in &self.stains {
+            let (dx, dy) = (x - stain.centre_px[0], y - stain.centre_px[1]);
+            if (dx * dx + dy * dy).sqrt() < stain.radius_at(dy.atan2(dx)) {
+                value *= stain.transmission;
+            }
+        }
+        value
+    }
+}
+
+/// Signed distance from the capsule's surface (negative inside).
+fn capsule_distance(x: f64, y: f64, c: [f64; 2], length: f64, width: f64, angle: f64) -> f64 {
+    let (u, v) = to_axis_frame(x, y, c, angle);
+    let half_core = (length - width).max(0.0) / 2.0;
+    let du = (u.abs() - half_core).max(0.0);
+    (du * du + v * v).sqrt() - width / 2.0
+}
+
+/// Signed distance from the lying bottle's cap boundary (a disc at the +u end).
+fn lying_cap_distance(x: f64, y: f64, c: [f64; 2], length: f64, width: f64, angle: f64) -> f64 {
+    let (u, v) = to_axis_frame(x, y, c, angle);
+    let cap_u = length / 2.0 - width * 0.25;
+    ((u - cap_u).powi(2) + v * v).sqrt() - width * 0.25
+}
+
+fn to_axis_frame(x: f64, y: f64, c: [f64; 2], angle: f64) -> (f64, f64) {
+    let (dx, dy) = (x - c[0], y - c[1]);
+    let (s, co) = angle.sin_cos();
+    (dx * co + dy * s, -dx * s + dy * co)
+}
+
+/// Reflectance of a bottle at a point, `None` outside it.
+fn bottle_reflectance(bottle: &Bottle, x: f64, y: f64) -> Option<f64> {
+    match *bottle {
+        Bottle::Standing {
+            centre_px,
+            body_radius_px,
+            cap_radius_px,
+            cap_level,
+        } => {
+            let (dx, dy) = (x - centre_px[0], y - centre_px[1]);
+            let rho = (dx * dx + dy * dy).sqrt();
+            if rho >= body_radius_px {
+                return None;
+            }
+            if rho < cap_radius_px {
+                return Some(cap_level);
+            }
+            // Translucent PET: brighter where the wall is seen at a grazing angle, a soft
+            // specular highlight off-centre, a darker shoulder ring.
+            let t = rho / body_radius_px;
+            let highlight = 60.0
+                * (-((dx + 0.45 * body_radius_px).powi(2) + (dy + 0.35 * body_radius_px).powi(2))
+                    / (0.06 * body_radius_px * body_radius_px))
+                    .exp();
+            let shoulder = -25.0 * (-((t - 0.55) / 0.08).powi(2)).exp();
+            Some(120.0 + 60.0 * t.powi(4) + highlight + shoulder)
+        }
+        Bottle::Lying {
+            centre_px,
+            length_px,
+            width_px,
+            angle_rad,
+            cap_level,
+        } => {
+            if capsule_distance(x, y, centre_px, length_px, width_px, angle_rad) >= 0.0 {
+                return None;
+            }
+            if lying_cap_distance(x, y, centre_px, length_px, width_px, angle_rad) < 0.0 {
+                return Some(cap_level);
+            }
+            let (_, v) = to_axis_frame(x, y, centre_px, angle_rad);
+            let s = (2.0 * v / width_px).clamp(-1.0, 1.0);
+            // A cylinder: a bright highlight stripe along the axis, brighter limbs, a label band.
+            let stripe = 80.0 * (-((s + 0.2) / 0.12).powi(2)).exp();
+            Some(115.0 + 55.0 * s.powi(6) + stripe)
+        }
+    }
+}
+
+/// Draws a random scene of `difficulty`, all from `seed`.
+///
+/// Tubes have bore radii of 20-120 px (circles, ellipses, 2- and 3-lobe bores), wall thicknesses
+/// of 8-60 px; bottles and stains are placed apart from the tubes' end faces except for stains,
+/// which may lie on rims.
+pub fn random_scene(seed: u64, width_px: u32, height_px: u32, difficulty: Difficulty) -> Scene {
+    let mut rng = SplitMix64::new(seed);
+    let (w, h) = (f64::from(width_px), f64::from(height_px));
+    let max_bore_px = (w.min(h) / 2.0 - 30.0).clamp(20.0, 120.0) / 1.5;
+    let mut discs: Vec<([f64; 2], f64)> = Vec::new();
+    let place = |rng: &mut SplitMix64, radius: f64, discs: &mut Vec<([f64; 2], f64)>| {
+        for _ in 0..200 {
+            let c = [
+                rng.range(radius + 4.0, w - radius - 4.0),
+                rng.range(radius + 4.0, h - radius - 4.0),
+            ];
+            if discs.iter().all(|(d, r)| {
+                ((c[0] - d[0]).powi(2) + (c[1] - d[1]).powi(2)).sqrt() > r + radius + 6.0
+            }) {
+                discs.push((c, radius));
+                return Some(c);
+            }
+        }
+        None
+    };
+    let tube_count = 1 + (rng.next_u64() % 4) as usize;
+    let mut tubes = Vec::new();
+    for i in 0..tube_count {
+        let mean_radius = rng.range(20.0, 20.0f64.max(max_bore_px));
+        let wall = rng.range(
+            8.0f64.max(0.2 * mean_radius),
+            10.0f64.max(0.5 * mean_radius),
+        );
+        let bore = match (i + (seed % 3) as usize) % 3 {
+            0 => BoreShape::Circle {
+                radius_px: mean_radius,
+            },
+            1 => {
+                let diff = rng.range(0.0, 0.1 * mean_radius);
+                BoreShape::Ellipse {
+                    a_px: mean_radius + diff / 2.0,
+                    b_px: mean_radius - diff / 2.0,
+                    angle_rad: rng.range(0.0, PI),
+                }
+            }
+            _ => BoreShape::Lobed {
+                mean_radius_px: mean_radius,
+                amplitude_px: rng.range(0.0, 4.0f64.min(0.08 * mean_radius)),
+                lobes: 2 + (rng.next_u64() % 2) as u32,
+                phase_rad: rng.range(0.0, TAU),
+            },
+        };
+        let outer = bore.max_radius_px() + wall;
+        let Some(c) = place(&mut rng, outer, &mut discs) else {
+            continue;
+        };
+        tubes.push(Tube {
+            centre_px: c,
+            bore,
+            outer_radius_px: outer,
+            rim_level: rng.range(170.0, 225.0),
+            bore_level: rng.range(10.0, 35.0),
+        });
+    }
+    let mut bottles = Vec::new();
+    let mut stains = Vec::new();
+    let (illumination, noise) = match difficulty {
+        Difficulty::Clean => (
+            Illumination {
+                gradient_x: 0.0,
+                gradient_y: 0.0,
+                vignetting: 0.0,
+            },
+            Noise {
+                sigma: 0.0,
+                salt_pepper: 0.0,
+            },
+        ),
+        Difficulty::Moderate => (
+            Illumination {
+                gradient_x: rng.range(-0.3, 0.3),
+                gradient_y: rng.range(-0.3, 0.3),
+                vignetting: rng.range(0.0, 0.2),
+            },
+            Noise {
+                sigma: rng.range(2.0, 6.0),
+                salt_pepper: rng.range(0.0, 0.005),
+            },
+        ),
+        Difficulty::Heavy => (
+            Illumination {
+                gradient_x: rng.range(-0.5, 0.5),
+                gradient_y: rng.range(-0.5, 0.5),
+                vignetting: rng.range(0.2, 0.4),
+            },
+            Noise {
+                sigma: rng.range(6.0, 12.0),
+                salt_pepper: rng.range(0.02, 0.06),
+            },
+        ),
+    };
+    if difficulty != Difficulty::Clean {
+        let bottle_count = if difficulty == Difficulty::Heavy {
+            2
+        } else {
+            1
+        };
+        for _ in 0..bottle_count {
+            let cap_level = if rng.unit() < 0.5 {
+                rng.range(40.0, 90.0)
+            } else {
+                rng.range(150.0, 230.0)
+            };
+            if rng.unit() < 0.5 {
+                let body = rng.range(45.0, 80.0);
+                if let Some(c) = place(&mut rng, body, &mut discs) {
+                    bottles.push(Bottle::Standing {
+                        centre_px: c,
+                        body_radius_px: body,
+                        cap_radius_px: body * rng.range(0.28, 0.38),
+                        cap_level,
+                    });
+                }
+            } else {
+                let width = rng.range(50.0, 80.0);
+                let length = width * rng.range(2.5, 3.5);
+                if let Some(c) = place(&mut rng, length / 2.0, &mut discs) {
+                    bottles.push(Bottle::Lying {
+                        centre_px: c,
+                        length_px: length,
+                        width_px: width,
+                        angle_rad: rng.range(0.0, PI),
+                        cap_level,
+                    });
+                }
+            }
+        }
+        let stain_count = if difficulty == Difficulty::Heavy {
+            4
+        } else {
+            2
+        };
+        for _ in 0..stain_count {
+            let harmonics = (0..3)
+                .map(|_| (rng.range(0.0, 0.15), rng.range(0.0, TAU)))
+                .collect();
+            stains.push(Stain {
+                centre_px: [rng.range(0.0, w), rng.range(0.0, h)],
+                radius_px: rng.range(6.0, 25.0),
+                harmonics,
+                transmission: rng.range(0.55, 0.8),
+            });
+        }
+    }
+    Scene {
+        width_px,
+        height_px,
+        belt_level: rng.range(35.0, 55.0),
+        tubes,
+        bottles,
+        stains,
+        illumination,
+        noise,
+        noise_seed: rng.next_u64(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn same_seed_same_image() {
+        let a = random_scene(7, 160, 120, Difficulty::Heavy).render();
+        let b = random_scene(7, 160, 120, Difficulty::Heavy).render();
+        assert_eq!(a.as_raw(), b.as_raw());
+    }
+
+    #[test]
+    fn lobed_truth_is_twice_the_amplitude() {
+        let shape = BoreShape::Lobed {
+            mean_radius_px: 50.0,
+            amplitude_px: 2.5,
+            lobes: 3,
+            phase_rad: 0.3,
+        };
+        assert!((shape.roundness_px() - 5.0).abs() < 1e-12);
+        assert!((shape.mean_radius_px() - 50.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn anti_aliased_edge_is_the_covered_area() {
+        // A huge circle is locally a straight vertical edge at x = 100.25 near (100, 300).
+        let scene = Scene {
+            width_px: 200,
+            height_px: 600,
+            belt_level: 0.0,
+            tubes: vec![Tube {
+                centre_px: [-9899.75, 300.0],
+                bore: BoreShape::Circle {
+                    radius_px: 10_000.0,
+                },
+                outer_radius_px: 20_000.0,
+                rim_level: 200.0,
+                bore_level: 0.0,
+            }],
+            bottles: vec![],
+            stains: vec![],
+            illumination: Illumination {
+                gradient_x: 0.0,
+                gradient_y: 0.0,
+                vignetting: 0.0,
+            },
+            noise: Noise {
+                sigma: 0.0,
+                salt_pepper: 0.0,
+            },
+            noise_seed: 0,
+        };
+        let image = scene.render();
+        // Pixel 100 spans [99.5, 100.5]: bore (0) on [99.5, 100.25], rim (200) on the rest.
+        assert_eq!(image.get_pixel(100, 300)[0], 50);
+    }
+}
