@@ -47,11 +47,12 @@ impl PhysicsHooks for ConveyorHooks {
         if speed == 0.0 {
             return;
         }
-        // The tangent velocity is that of body 2's surface relative to body 1's.
+        // The tangent velocity is collider 1's surface velocity relative to collider 2's (checked
+        // by the conveyor test: parts travel downstream, along +x).
         let sign = if context.collider1 == self.belt {
-            -1.0
-        } else {
             1.0
+        } else {
+            -1.0
         };
         if let ModifiableContacts::Rigid(manifold) = &mut context.contacts {
             for contact in manifold.solver_contacts.iter_mut() {

@@ -156,6 +156,7 @@ impl Cell {
             dt_s: scenario.physics.dt_s,
             gravity_m_s2: 9.81,
             solver_iterations: scenario.physics.solver_iterations,
+            ..WorldParams::default()
         });
         let base = scenario.robot.base_xyz_m;
         let world_from_base = Isometry3::translation(base[0], base[1], base[2]);
@@ -405,7 +406,9 @@ fn insert_part(
         m as f32,
         Vector::new(transverse as f32, axial as f32, transverse as f32),
     );
-    let collider = ColliderBuilder::cylinder((h / 2.0) as f32, outer as f32)
+    // A 32-sided prism, not a round cylinder: flat pads then touch it along lines, as real pads
+    // touch a tube, and the solver gets several contact points to resist twisting.
+    let collider = ColliderBuilder::new(prism_shape(outer, h, 32))
         .rotation(vector_to_physics(&rotation.scaled_axis()))
         .mass_properties(props)
         .friction(0.6)
@@ -415,6 +418,23 @@ fn insert_part(
         .colliders
         .insert_with_parent(collider, body, &mut physics.bodies);
     body
+}
+
+/// A convex prism with `sides` faces around the y axis, circumscribing radius `radius`.
+fn prism_shape(radius: f64, height: f64, sides: u32) -> SharedShape {
+    let mut points = Vec::with_capacity(2 * sides as usize);
+    for i in 0..sides {
+        let angle = std::f64::consts::TAU * f64::from(i) / f64::from(sides);
+        for y in [-height / 2.0, height / 2.0] {
+            points.push(Vector::new(
+                (radius * angle.cos()) as f32,
+                y as f32,
+                (radius * angle.sin()) as f32,
+            ));
+        }
+    }
+    SharedShape::convex_hull(&points)
+        .unwrap_or_else(|| SharedShape::cylinder((height / 2.0) as f32, radius as f32))
 }
 
 /// Inserts the bottle near the part, on the belt and clear of it.
@@ -554,7 +574,12 @@ fn robot_shapes(world: &World, arm: &SimArm, q: &[f64; DOF]) -> Vec<RobotShape> 
             let Some(collider) = world.physics.colliders.get(*handle) else {
                 continue;
             };
-            let shape_in_base = base_from_world * pose_from_physics(collider.position());
+            // Colliders' world poses lag their bodies until the next step; compose from the body.
+            let body_from_collider = collider
+                .position_wrt_parent()
+                .map_or_else(Isometry3::identity, pose_from_physics);
+            let shape_in_base =
+                base_from_world * pose_from_physics(rb.position()) * body_from_collider;
             shapes.push(RobotShape {
                 link: name.clone(),
                 mount,

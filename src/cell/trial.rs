@@ -26,8 +26,14 @@ const BELT_ACCEL_M_S2: f64 = 1.0;
 /// Height of the TCP above the part's bottom while grasping: the fingertips stop 8 mm above the
 /// belt.
 const GRASP_TCP_ABOVE_BOTTOM_M: f64 = 0.023;
+/// Time for the grip force to build once the drive reaches its end, s.
+const GRIP_BUILD_S: f64 = 0.1;
+/// Jaw speed of the gripper, m/s per finger.
+const JAW_SPEED_M_S: f64 = 0.1;
 /// Approach and retreat distance above grasp and place poses, m.
 const APPROACH_M: f64 = 0.12;
+/// The planner's name for the part while it stands on the belt.
+const PART_OBSTACLE: &str = "part";
 /// Clearance the planner keeps from obstacles, m.
 const PLANNING_MARGIN_M: f64 = 0.004;
 
@@ -152,6 +158,7 @@ struct Trial<'a> {
     bottle_rest: Option<Isometry3<f64>>,
     bottle_touched: bool,
     finger_command_m: f64,
+    finger_target_m: f64,
     grip_force_n: f64,
     q: JointVector,
     pick_time_s: Option<f64>,
@@ -175,6 +182,7 @@ impl<'a> Trial<'a> {
             bottle_rest: None,
             bottle_touched: false,
             finger_command_m: 0.045,
+            finger_target_m: 0.045,
             grip_force_n: scenario.gripper.grip_force_n,
             q: scenario.robot.home_q_rad,
             pick_time_s: None,
@@ -284,6 +292,21 @@ impl<'a> Trial<'a> {
         self.set_gripper(open, 40.0);
         self.execute(&plan.to_pregrasp, Watch::Free)?;
         self.execute(&plan.descend, Watch::Free)?;
+        if std::env::var("TC_DBG").is_ok() {
+            let p = self.cell.body_pose(self.cell.part_body).unwrap();
+            let t = self.tcp_in_world();
+            eprintln!(
+                "percept xy {:?} part now {:.4} {:.4} {:.4} tcp {:.4} {:.4} {:.4} q {:?}",
+                percept.part_xy,
+                p.translation.x,
+                p.translation.y,
+                p.translation.z,
+                t.translation.x,
+                t.translation.y,
+                t.translation.z,
+                self.cell.arm.joint_positions(&self.cell.world)
+            );
+        }
         // Grasp: close with the set force until the fingers stop.
         self.grasp(percept.part_outer_radius_m)?;
         let tcp_from_part = self.tcp_from_part()?;
@@ -374,6 +397,23 @@ impl<'a> Trial<'a> {
             self.cell.obstacles.clone(),
             PLANNING_MARGIN_M,
         );
+        // The part is an obstacle until the fingers go down around it.
+        let part_center = Isometry3::from_parts(
+            Translation3::new(
+                percept.part_xy[0],
+                percept.part_xy[1],
+                self.cell.belt_top_z + percept.part_height_m / 2.0,
+            ),
+            UnitQuaternion::from_euler_angles(std::f64::consts::FRAC_PI_2, 0.0, 0.0),
+        );
+        checker.add_obstacle(Obstacle {
+            name: PART_OBSTACLE.into(),
+            base_from_shape: self.cell.arm.world_from_base().inverse() * part_center,
+            shape: SharedShape::cylinder(
+                (percept.part_height_m / 2.0) as f32,
+                percept.part_outer_radius_m as f32,
+            ),
+        });
         if let Some((pose, shape)) = &percept.bottle {
             checker.add_obstacle(Obstacle {
                 name: "bottle".into(),
@@ -407,6 +447,8 @@ impl<'a> Trial<'a> {
         });
         // Lift so the part's bottom clears the bottle and the rails.
         let lift_z = grasp_z + (bottle_top - belt_top + 0.04).max(APPROACH_M);
+        // Come down from above the bottle: the fingertips hang 15 mm below the TCP.
+        let approach_z = (grasp_z + APPROACH_M).max(bottle_top + 0.015 + 0.03);
         // Fingers close across the line to the bottle, so neither finger passes near it.
         let preferred_yaw = percept.bottle.as_ref().map_or(0.0, |(pose, _)| {
             (pose.translation.y - y).atan2(pose.translation.x - x) + std::f64::consts::FRAC_PI_2
@@ -419,39 +461,40 @@ impl<'a> Trial<'a> {
             0.0, 180.0, 30.0, -30.0, 210.0, 150.0, 60.0, -60.0, 90.0, 270.0,
         ] {
             let yaw = preferred_yaw + f64::to_radians(offset_deg);
-            let above = self.tcp_in_base(Vector3::new(x, y, grasp_z + APPROACH_M), yaw);
+            let above = self.tcp_in_base(Vector3::new(x, y, approach_z), yaw);
             let at = self.tcp_in_base(Vector3::new(x, y, grasp_z), yaw);
             let lifted = self.tcp_in_base(Vector3::new(x, y, lift_z), yaw);
-            let Some(q_above) = self.ik.solve(&above).nearest(&self.q) else {
-                continue;
-            };
-            let Some(q_at) = self.ik.solve(&at).nearest(&q_above) else {
-                continue;
-            };
-            let Some(q_lift) = self.ik.solve(&lifted).nearest(&q_at) else {
-                continue;
-            };
-            reachable = true;
-            let to_pregrasp = JointTrajectory::through(&self.model, &[self.q, q_above], speed);
-            let descend = JointTrajectory::through(&self.model, &[q_above, q_at], speed * 0.5);
-            let lift = JointTrajectory::through(&self.model, &[q_at, q_lift], speed * 0.5);
-            let hit = checker
-                .check_trajectory(&to_pregrasp, open, None, &[])
-                .or_else(|| checker.check_trajectory(&descend, open, None, &[]));
-            match hit {
-                Some(hit) => {
-                    last_hit = format!(
-                        "{} would hit {} at yaw {offset_deg} deg",
-                        hit.link, hit.obstacle
-                    )
-                }
-                None => {
-                    return Ok(PickPlan {
-                        to_pregrasp,
-                        descend,
-                        lift,
-                        lift_end: q_lift,
-                    });
+            // Every arm configuration over the part, nearest first: another wrist or elbow
+            // branch can keep the links off a bottle that the nearest one would hit.
+            for q_above in self.ik.solve(&above).by_distance_from(&self.q) {
+                let Some(q_at) = self.ik.solve(&at).nearest(&q_above) else {
+                    continue;
+                };
+                let Some(q_lift) = self.ik.solve(&lifted).nearest(&q_at) else {
+                    continue;
+                };
+                reachable = true;
+                let to_pregrasp = JointTrajectory::through(&self.model, &[self.q, q_above], speed);
+                let descend = JointTrajectory::through(&self.model, &[q_above, q_at], speed * 0.5);
+                let lift = JointTrajectory::through(&self.model, &[q_at, q_lift], speed * 0.5);
+                let hit = checker
+                    .check_trajectory(&descend, open, None, &[PART_OBSTACLE])
+                    .or_else(|| checker.check_trajectory(&to_pregrasp, open, None, &[]));
+                match hit {
+                    Some(hit) => {
+                        last_hit = format!(
+                            "{} would hit {} at yaw {offset_deg} deg",
+                            hit.link, hit.obstacle
+                        )
+                    }
+                    None => {
+                        return Ok(PickPlan {
+                            to_pregrasp,
+                            descend,
+                            lift,
+                            lift_end: q_lift,
+                        });
+                    }
                 }
             }
         }
@@ -501,37 +544,37 @@ impl<'a> Trial<'a> {
             let yaw = f64::to_radians(yaw_deg);
             let above = self.tcp_in_base(Vector3::new(floor.x, floor.y, above_z), yaw);
             let at = self.tcp_in_base(Vector3::new(floor.x, floor.y, place_z), yaw);
-            let Some(q_above) = self.ik.solve(&above).nearest(q_start) else {
-                continue;
-            };
-            let Some(q_at) = self.ik.solve(&at).nearest(&q_above) else {
-                continue;
-            };
-            reachable = true;
-            let transport = JointTrajectory::through(&self.model, &[*q_start, q_above], speed);
-            let lower = JointTrajectory::through(&self.model, &[q_above, q_at], speed * 0.5);
-            let retreat = JointTrajectory::through(
-                &self.model,
-                &[q_at, q_above, self.scenario.robot.home_q_rad],
-                speed,
-            );
-            let hit = checker
-                .check_trajectory(&transport, grip, Some(&carried), &[])
-                .or_else(|| checker.check_trajectory(&lower, grip, Some(&carried), &[]))
-                .or_else(|| checker.check_trajectory(&retreat, open, None, &[]));
-            match hit {
-                Some(hit) => {
-                    last_hit = format!(
-                        "{} would hit {} placing at yaw {yaw_deg} deg",
-                        hit.link, hit.obstacle
-                    )
-                }
-                None => {
-                    return Ok(PlacePlan {
-                        transport,
-                        lower,
-                        retreat,
-                    });
+            for q_above in self.ik.solve(&above).by_distance_from(q_start) {
+                let Some(q_at) = self.ik.solve(&at).nearest(&q_above) else {
+                    continue;
+                };
+                reachable = true;
+                let transport = JointTrajectory::through(&self.model, &[*q_start, q_above], speed);
+                let lower = JointTrajectory::through(&self.model, &[q_above, q_at], speed * 0.5);
+                let retreat = JointTrajectory::through(
+                    &self.model,
+                    &[q_at, q_above, self.scenario.robot.home_q_rad],
+                    speed,
+                );
+                let ignore = [PART_OBSTACLE];
+                let hit = checker
+                    .check_trajectory(&lower, grip, Some(&carried), &ignore)
+                    .or_else(|| checker.check_trajectory(&transport, grip, Some(&carried), &ignore))
+                    .or_else(|| checker.check_trajectory(&retreat, open, None, &ignore));
+                match hit {
+                    Some(hit) => {
+                        last_hit = format!(
+                            "{} would hit {} placing at yaw {yaw_deg} deg",
+                            hit.link, hit.obstacle
+                        )
+                    }
+                    None => {
+                        return Ok(PlacePlan {
+                            transport,
+                            lower,
+                            retreat,
+                        });
+                    }
                 }
             }
         }
@@ -550,34 +593,20 @@ impl<'a> Trial<'a> {
         self.grip_force_n = force_n;
     }
 
-    /// Closes the fingers with the scenario's force until they stop.
+    /// Closes the jaws with the scenario's force: the drive runs its stroke to fully closed, then
+    /// holds; a part between the jaws stops them short, which is how the grasp is detected.
     fn grasp(&mut self, part_radius_m: f64) -> Result<(), Failure> {
         self.set_gripper(0.0, self.scenario.gripper.grip_force_n);
-        let mut still_for = 0.0;
-        let mut last = self.cell.arm.finger_positions_m(&self.cell.world);
-        let start = self.cell.world.time_s();
-        let dt = self.cell.world.params().dt_s;
-        while still_for < 0.12 {
-            if self.cell.world.time_s() - start > 1.5 {
-                return fail(FailureReason::Timeout, "fingers did not come to rest");
-            }
-            self.step()?;
-            let now = self.cell.arm.finger_positions_m(&self.cell.world);
-            let moving = now
-                .iter()
-                .zip(&last)
-                .any(|(a, b)| (a - b).abs() > 0.0005 * dt);
-            still_for = if moving { 0.0 } else { still_for + dt };
-            last = now;
-        }
-        let closed_on_part = last.iter().all(|s| *s > part_radius_m - 0.004);
+        let stroke_s = self.finger_target_m / JAW_SPEED_M_S;
+        self.settle(stroke_s + GRIP_BUILD_S)?;
+        let gap = self.cell.arm.finger_positions_m(&self.cell.world);
+        let closed_on_part = gap[0] + gap[1] > 2.0 * part_radius_m - 0.006;
         if !closed_on_part {
             return fail(
                 FailureReason::Slipped,
                 format!(
-                    "fingers closed to {:.1}/{:.1} mm: nothing between them",
-                    last[0] * 1e3,
-                    last[1] * 1e3
+                    "jaws closed to {:.1} mm: nothing between them",
+                    (gap[0] + gap[1]) * 1e3
                 ),
             );
         }
@@ -604,7 +633,75 @@ impl<'a> Trial<'a> {
                 self.q = sample.q;
             }
             self.step_physics()?;
+            if std::env::var("TC_DBG2").is_ok() {
+                let p = self.cell.body_pose(self.cell.part_body).unwrap();
+                let t = self.tcp_in_world();
+                let b = self.cell.body_pose(self.cell.bottle_body.unwrap()).unwrap();
+                eprintln!(
+                    "a t={:.3} part {:.4} {:.4} {:.4} tcp {:.4} {:.4} {:.4} bottle {:.4} {:.4} {:.4} touched {}",
+                    self.cell.world.time_s(),
+                    p.translation.x,
+                    p.translation.y,
+                    p.translation.z,
+                    t.translation.x,
+                    t.translation.y,
+                    t.translation.z,
+                    b.translation.x,
+                    b.translation.y,
+                    b.translation.z,
+                    self.bottle_touched
+                );
+            }
             if let Watch::Holding { tcp_from_part } = watch {
+                if std::env::var("TC_DBG").is_ok() {
+                    let p = self.cell.body_pose(self.cell.part_body).unwrap();
+                    let t = self.tcp_in_world();
+                    let f = self.cell.arm.finger_positions_m(&self.cell.world);
+                    let contacts: String = self
+                        .cell
+                        .world
+                        .physics
+                        .bodies
+                        .get(self.cell.part_body)
+                        .unwrap()
+                        .colliders()
+                        .iter()
+                        .flat_map(|c| {
+                            self.cell
+                                .world
+                                .physics
+                                .narrow_phase
+                                .contact_pairs_with(*c)
+                                .filter(|p| p.has_any_active_contact())
+                                .map(|p| {
+                                    format!(
+                                        "{:.1}N/{}pts/mu{:.2}",
+                                        p.total_impulse_magnitude() / 0.0041667,
+                                        p.manifolds()
+                                            .iter()
+                                            .map(|m| m.data.solver_contacts.len())
+                                            .sum::<usize>(),
+                                        p.manifolds().first().map_or(0.0, |m| m.data.friction)
+                                    )
+                                })
+                                .collect::<Vec<_>>()
+                        })
+                        .collect::<Vec<_>>()
+                        .join(" ");
+                    eprintln!(
+                        "t={:.3} part z {:.4} tcp z {:.4} part xy {:.4} {:.4} tcp xy {:.4} {:.4} fingers {:.4} {:.4} contacts {}",
+                        self.cell.world.time_s(),
+                        p.translation.z,
+                        t.translation.z,
+                        p.translation.x,
+                        p.translation.y,
+                        t.translation.x,
+                        t.translation.y,
+                        f[0],
+                        f[1],
+                        contacts
+                    );
+                }
                 self.check_hold(&tcp_from_part)?;
             }
         }
@@ -661,9 +758,12 @@ impl<'a> Trial<'a> {
         self.cell
             .conveyor
             .ramp_towards(self.belt_target_m_s as f32, (BELT_ACCEL_M_S2 * dt) as f32);
+        // The jaws travel at most JAW_SPEED_M_S, like a real gripper's drive.
+        let step = JAW_SPEED_M_S * dt;
+        self.finger_target_m += (self.finger_command_m - self.finger_target_m).clamp(-step, step);
         self.cell.arm.command_gripper(
             &mut self.cell.world,
-            self.finger_command_m,
+            self.finger_target_m,
             self.grip_force_n,
         );
         let started = Instant::now();

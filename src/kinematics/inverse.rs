@@ -65,6 +65,20 @@ impl IkSolutions {
         best.map(|(_, q)| q)
     }
 
+    /// The solutions ordered by distance from `reference`, nearest first (ties keep the
+    /// solver's order).
+    pub fn by_distance_from(&self, reference: &JointVector) -> Vec<JointVector> {
+        let distance = |q: &JointVector| -> f64 {
+            q.iter()
+                .zip(reference)
+                .map(|(a, b)| (a - b) * (a - b))
+                .sum()
+        };
+        let mut ordered = self.solutions.clone();
+        ordered.sort_by(|a, b| distance(a).total_cmp(&distance(b)));
+        ordered
+    }
+
     fn push_distinct(&mut self, q: JointVector) {
         let duplicate = self.solutions.iter().any(|s| {
             s.iter()

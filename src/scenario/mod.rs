@@ -96,7 +96,15 @@ impl Default for RobotSection {
         Self {
             base_xyz_m: [0.0, 0.0, 0.6],
             pedestal_side_m: 0.3,
-            home_q_rad: [-1.5708, -0.26, 1.74, 0.43, 1.5708, 0.0],
+            // TCP pointing down 0.3 m in front of the base and 0.4 m above it, elbow up.
+            home_q_rad: [
+                -1.153_817,
+                0.458_529,
+                1.673_047,
+                -0.356_278,
+                std::f64::consts::FRAC_PI_2,
+                0.416_979,
+            ],
             speed_fraction: 0.6,
             urdf: None,
         }

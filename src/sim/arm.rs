@@ -154,6 +154,7 @@ impl SimArm {
         for (i, name) in FINGER_JOINTS.iter().enumerate() {
             fingers[i] = find_joint(name)?.0;
         }
+        couple_fingers(world, &fingers);
         let link_bodies: Vec<(String, RigidBodyHandle)> = link_names
             .into_iter()
             .zip(handles.links.iter().map(|l| l.body))
@@ -226,7 +227,9 @@ impl SimArm {
     pub fn command_gripper(&self, world: &mut World, pad_offset_m: f64, max_force_n: f64) {
         for handle in &self.fingers {
             with_joint_mut(world, *handle, |joint| {
-                // A stiff, well-damped servo that saturates at the force limit when blocked.
+                // Force-based so that the limit is in newtons: a stiff, well-damped servo that
+                // saturates at the force limit when the jaws are blocked by a part.
+                joint.set_motor_model(JointAxis::LinX, MotorModel::ForceBased);
                 joint.set_motor(JointAxis::LinX, pad_offset_m as f32, 0.0, 4_000.0, 120.0);
                 joint.set_motor_max_force(JointAxis::LinX, max_force_n as f32);
             });
@@ -277,6 +280,28 @@ impl SimArm {
             .get(self.flange_body)
             .map(|body| pose_from_physics(body.position()))
             .unwrap_or_else(Isometry3::identity)
+    }
+}
+
+/// Couples the two finger joints so they open and close together, as a parallel gripper's jaws
+/// do through their rack and pinion.
+fn couple_fingers(world: &mut World, fingers: &[MultibodyJointHandle; 2]) {
+    let joints = &mut world.physics.multibody_joints;
+    let (Some((_, left)), Some((_, right))) = (joints.get(fingers[0]), joints.get(fingers[1]))
+    else {
+        return;
+    };
+    if let Some((multibody, _)) = joints.get_mut(fingers[0]) {
+        multibody.add_dof_coupling(MultibodyDofCoupling {
+            link1: left,
+            dof1: 0,
+            axis1: PRISMATIC_COORD,
+            link2: right,
+            dof2: 0,
+            axis2: PRISMATIC_COORD,
+            coeff: 1.0,
+            offset: 0.0,
+        });
     }
 }
 
