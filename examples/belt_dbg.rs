@@ -13,7 +13,7 @@ fn main() {
             cell.world.step_with_hooks(&cell.conveyor);
             if i % 120 == 0 {
                 let p = cell.body_pose(cell.part_body).unwrap();
-                let (r, pi, y) = p.rotation.euler_angles();
+                let (r, pi, _) = p.rotation.euler_angles();
                 println!(
                     "t={:.2} v={:.3} part {:.5} {:.5} {:.5} tilt {:.4} {:.4}",
                     cell.world.time_s(),

@@ -538,6 +538,10 @@ fn set_robot_friction(world: &mut World, arm: &SimArm, pad_friction: f64) {
         for handle in handles {
             if let Some(collider) = physics.colliders.get_mut(handle) {
                 collider.set_friction(friction as f32);
+                if name.starts_with("finger") {
+                    // Rubber pads grip with their own coefficient, whatever they touch.
+                    collider.set_friction_combine_rule(CoefficientCombineRule::Max);
+                }
                 collider.user_data = Tag::Robot as u128;
             }
         }

@@ -17,9 +17,10 @@ use crate::batch::{
 use crate::control::TrajectoryFollower;
 use crate::kinematics::{AnalyticIk, ArmModel, IkSolver, JointVector};
 use crate::math::pose_from_physics;
-use crate::planning::{Carried, CollisionChecker, JointTrajectory, Obstacle};
+use crate::planning::{Carried, CollisionChecker, JointTrajectory, Obstacle, straight_line};
 use crate::rng::SimRng;
 use crate::scenario::Scenario;
+use crate::sim::JAW_SPEED_M_S;
 
 /// Belt drive ramp, m/s^2: gentle enough that a standing bottle does not tip.
 const BELT_ACCEL_M_S2: f64 = 1.0;
@@ -28,10 +29,10 @@ const BELT_ACCEL_M_S2: f64 = 1.0;
 const GRASP_TCP_ABOVE_BOTTOM_M: f64 = 0.023;
 /// Time for the grip force to build once the drive reaches its end, s.
 const GRIP_BUILD_S: f64 = 0.1;
-/// Jaw speed of the gripper, m/s per finger.
-const JAW_SPEED_M_S: f64 = 0.1;
 /// Approach and retreat distance above grasp and place poses, m.
 const APPROACH_M: f64 = 0.12;
+/// Sample spacing of straight tool lines, m.
+const LINE_STEP_M: f64 = 0.005;
 /// The planner's name for the part while it stands on the belt.
 const PART_OBSTACLE: &str = "part";
 /// Clearance the planner keeps from obstacles, m.
@@ -290,8 +291,8 @@ impl<'a> Trial<'a> {
         // Approach: open, move above the part, descend.
         let open = percept.part_outer_radius_m + self.scenario.gripper.open_clearance_m;
         self.set_gripper(open, 40.0);
-        self.execute(&plan.to_pregrasp, Watch::Free)?;
-        self.execute(&plan.descend, Watch::Free)?;
+        self.execute("approach", &plan.to_pregrasp, Watch::Free)?;
+        self.execute("descend", &plan.descend, Watch::Free)?;
         if std::env::var("TC_DBG").is_ok() {
             let p = self.cell.body_pose(self.cell.part_body).unwrap();
             let t = self.tcp_in_world();
@@ -312,17 +313,17 @@ impl<'a> Trial<'a> {
         let tcp_from_part = self.tcp_from_part()?;
         let watch = Watch::Holding { tcp_from_part };
         // Lift, transport, lower into the bin.
-        self.execute(&plan.lift, watch)?;
+        self.execute("lift", &plan.lift, watch)?;
         let plan_started = Instant::now();
         let place = self.plan_place(&percept, &bin, &plan.lift_end, &checker);
         self.timing.planning_ms += plan_started.elapsed().as_secs_f64() * 1e3;
         let place = place?;
-        self.execute(&place.transport, watch)?;
-        self.execute(&place.lower, watch)?;
+        self.execute("transport", &place.transport, watch)?;
+        self.execute("place", &place.lower, watch)?;
         // Release and retreat.
         self.set_gripper(open, 40.0);
         self.settle(0.3)?;
-        self.execute(&place.retreat, Watch::Free)?;
+        self.execute("retreat", &place.retreat, Watch::Free)?;
         self.settle(0.4)?;
         Ok(())
     }
@@ -467,16 +468,21 @@ impl<'a> Trial<'a> {
             // Every arm configuration over the part, nearest first: another wrist or elbow
             // branch can keep the links off a bottle that the nearest one would hit.
             for q_above in self.ik.solve(&above).by_distance_from(&self.q) {
-                let Some(q_at) = self.ik.solve(&at).nearest(&q_above) else {
+                // Straight down onto the part and straight up again: a joint-space move would
+                // swing the open fingers centimetres off the part's axis.
+                let Some(down) = straight_line(&self.ik, &above, &at, &q_above, LINE_STEP_M) else {
                     continue;
                 };
-                let Some(q_lift) = self.ik.solve(&lifted).nearest(&q_at) else {
+                let q_at = down[down.len() - 1];
+                let Some(up) = straight_line(&self.ik, &at, &lifted, &q_at, LINE_STEP_M) else {
                     continue;
                 };
+                let q_lift = up[up.len() - 1];
                 reachable = true;
                 let to_pregrasp = JointTrajectory::through(&self.model, &[self.q, q_above], speed);
-                let descend = JointTrajectory::through(&self.model, &[q_above, q_at], speed * 0.5);
+                let descend = JointTrajectory::along(&self.model, down, speed * 0.5);
                 let lift = JointTrajectory::through(&self.model, &[q_at, q_lift], speed * 0.5);
+                let _ = up;
                 let hit = checker
                     .check_trajectory(&descend, open, None, &[PART_OBSTACLE])
                     .or_else(|| checker.check_trajectory(&to_pregrasp, open, None, &[]));
@@ -545,17 +551,23 @@ impl<'a> Trial<'a> {
             let above = self.tcp_in_base(Vector3::new(floor.x, floor.y, above_z), yaw);
             let at = self.tcp_in_base(Vector3::new(floor.x, floor.y, place_z), yaw);
             for q_above in self.ik.solve(&above).by_distance_from(q_start) {
-                let Some(q_at) = self.ik.solve(&at).nearest(&q_above) else {
+                let Some(down) = straight_line(&self.ik, &above, &at, &q_above, LINE_STEP_M) else {
                     continue;
                 };
+                let q_at = down[down.len() - 1];
+                let mut up = down.clone();
+                up.reverse();
                 reachable = true;
                 let transport = JointTrajectory::through(&self.model, &[*q_start, q_above], speed);
-                let lower = JointTrajectory::through(&self.model, &[q_above, q_at], speed * 0.5);
-                let retreat = JointTrajectory::through(
-                    &self.model,
-                    &[q_at, q_above, self.scenario.robot.home_q_rad],
-                    speed,
+                let lower = JointTrajectory::along(&self.model, down, speed * 0.5);
+                let retreat = JointTrajectory::along(&self.model, up, speed * 0.5).then(
+                    JointTrajectory::through(
+                        &self.model,
+                        &[q_above, self.scenario.robot.home_q_rad],
+                        speed,
+                    ),
                 );
+                let _ = q_at;
                 let ignore = [PART_OBSTACLE];
                 let hit = checker
                     .check_trajectory(&lower, grip, Some(&carried), &ignore)
@@ -625,7 +637,12 @@ impl<'a> Trial<'a> {
     }
 
     /// Plays a trajectory to the end plus a short settle, watching for slips, drops and the bottle.
-    fn execute(&mut self, trajectory: &JointTrajectory, watch: Watch) -> Result<(), Failure> {
+    fn execute(
+        &mut self,
+        phase: &str,
+        trajectory: &JointTrajectory,
+        watch: Watch,
+    ) -> Result<(), Failure> {
         let follower = TrajectoryFollower::new(trajectory.clone(), self.cell.world.time_s());
         let end = self.cell.world.time_s() + trajectory.duration_s() + 0.15;
         while self.cell.world.time_s() < end {
@@ -702,7 +719,7 @@ impl<'a> Trial<'a> {
                         contacts
                     );
                 }
-                self.check_hold(&tcp_from_part)?;
+                self.check_hold(phase, &tcp_from_part)?;
             }
         }
         if let Some(q) = trajectory.end() {
@@ -711,8 +728,36 @@ impl<'a> Trial<'a> {
         Ok(())
     }
 
-    fn check_hold(&self, tcp_from_part: &Isometry3<f64>) -> Result<(), Failure> {
+    fn check_hold(&self, phase: &str, tcp_from_part: &Isometry3<f64>) -> Result<(), Failure> {
         let now = self.tcp_from_part()?;
+        if std::env::var("TC_DBG3").is_ok() {
+            let d = now.translation.vector - tcp_from_part.translation.vector;
+            let ang = now.rotation.angle_to(&tcp_from_part.rotation);
+            let physics = &self.cell.world.physics;
+            let mut info = String::new();
+            for c in physics.bodies.get(self.cell.part_body).unwrap().colliders() {
+                for pair in physics.narrow_phase.contact_pairs_with(*c) {
+                    for m in pair.manifolds() {
+                        let n: f32 = m.points.iter().map(|p| p.data.impulse).sum::<f32>() / 0.0041667;
+                        let t: f32 = m.points.iter().map(|p| p.data.tangent_impulse.norm()).sum::<f32>() / 0.0041667;
+                        info += &format!(" [n {:.1} t {:.1} pts {} normal {:.2} {:.2} {:.2}]", n, t, m.points.len(), m.data.normal.x, m.data.normal.y, m.data.normal.z);
+                    }
+                }
+            }
+            let tcp = self.tcp_in_world();
+            let mut fingers = String::new();
+            for (name, body) in self.cell.arm.link_bodies() {
+                if name.starts_with("finger") {
+                    let p = tcp.inverse() * self.cell.body_pose(*body).unwrap();
+                    fingers += &format!(" {name} {:.4} {:.4} {:.4}", p.translation.x, p.translation.y, p.translation.z);
+                }
+            }
+            let _ = info;
+            let axis = (now.rotation * tcp_from_part.rotation.inverse()).scaled_axis();
+            let _ = fingers;
+            let part_in_tcp = now.translation.vector;
+            eprintln!("h t={:.3} {phase} d {:.4} {:.4} {:.4} rot {:.4} axis {:.4} {:.4} {:.4} part_in_tcp {:.4} {:.4} {:.4} jaws {:?} forces {:?}", self.cell.world.time_s(), d.x, d.y, d.z, ang, axis.x, axis.y, axis.z, part_in_tcp.x, part_in_tcp.y, part_in_tcp.z, self.cell.arm.finger_positions_m(&self.cell.world), 0);
+        }
         let drift = (now.translation.vector - tcp_from_part.translation.vector).norm();
         if drift <= self.scenario.task.slip_tolerance_m {
             return Ok(());
@@ -726,7 +771,10 @@ impl<'a> Trial<'a> {
         } else {
             fail(
                 FailureReason::Slipped,
-                format!("part slid {:.1} mm in the fingers", drift * 1e3),
+                format!(
+                    "part slid {:.1} mm in the fingers during {phase}",
+                    drift * 1e3
+                ),
             )
         }
     }
@@ -761,11 +809,7 @@ impl<'a> Trial<'a> {
         // The jaws travel at most JAW_SPEED_M_S, like a real gripper's drive.
         let step = JAW_SPEED_M_S * dt;
         self.finger_target_m += (self.finger_command_m - self.finger_target_m).clamp(-step, step);
-        self.cell.arm.command_gripper(
-            &mut self.cell.world,
-            self.finger_target_m,
-            self.grip_force_n,
-        );
+        self.cell.arm.drive_gripper(&mut self.cell.world, self.finger_target_m, self.grip_force_n);
         let started = Instant::now();
         self.cell.world.step_with_hooks(&self.cell.conveyor);
         self.timing.physics_ms += started.elapsed().as_secs_f64() * 1e3;

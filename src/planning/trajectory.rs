@@ -13,12 +13,12 @@ pub struct TrajectorySample {
     pub qdd: JointVector,
 }
 
-/// One rest-to-rest segment: `q(t) = start + (end - start) s(t / duration)` with the quintic
-/// `s(u) = 10u^3 - 15u^4 + 6u^5` (zero velocity and acceleration at both ends).
+/// One rest-to-rest segment along a joint-space polyline `path` (two points for a plain joint
+/// move, many for a straight tool line), timed by the quintic `s(u) = 10u^3 - 15u^4 + 6u^5`
+/// over the path parameter: zero velocity and acceleration at both ends.
 #[derive(Debug, Clone, PartialEq)]
 struct Segment {
-    start: JointVector,
-    end: JointVector,
+    path: Vec<JointVector>,
     duration_s: f64,
 }
 
@@ -39,25 +39,27 @@ impl JointTrajectory {
     /// The fastest synchronised quintic path through `waypoints` (the first is the start) with
     /// every joint within `speed_fraction` of its velocity and acceleration limits.
     pub fn through(arm: &ArmModel, waypoints: &[JointVector], speed_fraction: f64) -> Self {
-        let fraction = speed_fraction.clamp(1e-3, 1.0);
-        let mut segments = Vec::with_capacity(waypoints.len().saturating_sub(1));
-        for pair in waypoints.windows(2) {
-            let (start, end) = (pair[0], pair[1]);
-            let mut duration_s: f64 = 0.0;
-            for j in 0..DOF {
-                let distance = (end[j] - start[j]).abs();
-                let v_max = arm.limits[j].max_velocity_rad_s * fraction;
-                let a_max = arm.limits[j].max_accel_rad_s2 * fraction;
-                duration_s = duration_s
-                    .max(QUINTIC_PEAK_VELOCITY * distance / v_max)
-                    .max((QUINTIC_PEAK_ACCEL * distance / a_max).sqrt());
-            }
-            segments.push(Segment {
-                start,
-                end,
-                duration_s,
-            });
-        }
+        let segments = waypoints
+            .windows(2)
+            .map(|pair| Segment::timed(arm, vec![pair[0], pair[1]], speed_fraction))
+            .collect();
+        Self::from_segments(segments)
+    }
+
+    /// One rest-to-rest motion along a dense joint-space polyline (e.g. IK solutions along a
+    /// straight tool line), passed through without stopping.
+    pub fn along(arm: &ArmModel, path: Vec<JointVector>, speed_fraction: f64) -> Self {
+        Self::from_segments(vec![Segment::timed(arm, path, speed_fraction)])
+    }
+
+    /// This trajectory followed by `next`.
+    pub fn then(mut self, next: JointTrajectory) -> Self {
+        self.segments.extend(next.segments);
+        self.total_s = self.segments.iter().map(|s| s.duration_s).sum();
+        self
+    }
+
+    fn from_segments(segments: Vec<Segment>) -> Self {
         let total_s = segments.iter().map(|s| s.duration_s).sum();
         Self { segments, total_s }
     }
@@ -69,7 +71,7 @@ impl JointTrajectory {
 
     /// The final waypoint, if any segment exists.
     pub fn end(&self) -> Option<JointVector> {
-        self.segments.last().map(|s| s.end)
+        self.segments.last().and_then(|s| s.path.last().copied())
     }
 
     /// The desired state at `t_s` seconds from the start (held at the ends).
@@ -87,10 +89,30 @@ impl JointTrajectory {
 }
 
 impl Segment {
+    /// A segment along `path` as fast as the limits allow. Along the path `dq/ds` is piecewise
+    /// constant, `(n - 1) * delta` on each piece, so the quintic's peaks bound every joint.
+    fn timed(arm: &ArmModel, path: Vec<JointVector>, speed_fraction: f64) -> Self {
+        let fraction = speed_fraction.clamp(1e-3, 1.0);
+        let pieces = path.len().saturating_sub(1).max(1) as f64;
+        let mut duration_s: f64 = 0.0;
+        for pair in path.windows(2) {
+            for j in 0..DOF {
+                let rate = pieces * (pair[1][j] - pair[0][j]).abs();
+                let v_max = arm.limits[j].max_velocity_rad_s * fraction;
+                let a_max = arm.limits[j].max_accel_rad_s2 * fraction;
+                duration_s = duration_s
+                    .max(QUINTIC_PEAK_VELOCITY * rate / v_max)
+                    .max((QUINTIC_PEAK_ACCEL * rate / a_max).sqrt());
+            }
+        }
+        Self { path, duration_s }
+    }
+
     fn sample(&self, t_s: f64) -> TrajectorySample {
-        if t_s >= self.duration_s {
+        let last = *self.path.last().unwrap_or(&[0.0; DOF]);
+        if t_s >= self.duration_s || self.path.len() < 2 {
             return TrajectorySample {
-                q: self.end,
+                q: last,
                 qd: [0.0; DOF],
                 qdd: [0.0; DOF],
             };
@@ -100,11 +122,16 @@ impl Segment {
         let s = u3 * (10.0 - 15.0 * u + 6.0 * u2);
         let ds = 30.0 * u2 * (1.0 - u) * (1.0 - u) / self.duration_s;
         let dds = 60.0 * u * (1.0 - u) * (1.0 - 2.0 * u) / (self.duration_s * self.duration_s);
-        let delta: JointVector = std::array::from_fn(|j| self.end[j] - self.start[j]);
+        let pieces = self.path.len() - 1;
+        let position = s * pieces as f64;
+        let index = (position.floor() as usize).min(pieces - 1);
+        let fraction = position - index as f64;
+        let (a, b) = (self.path[index], self.path[index + 1]);
+        let dq_ds: JointVector = std::array::from_fn(|j| (b[j] - a[j]) * pieces as f64);
         TrajectorySample {
-            q: std::array::from_fn(|j| self.start[j] + delta[j] * s),
-            qd: std::array::from_fn(|j| delta[j] * ds),
-            qdd: std::array::from_fn(|j| delta[j] * dds),
+            q: std::array::from_fn(|j| a[j] + (b[j] - a[j]) * fraction),
+            qd: std::array::from_fn(|j| dq_ds[j] * ds),
+            qdd: std::array::from_fn(|j| dq_ds[j] * dds),
         }
     }
 }

@@ -126,8 +126,8 @@ pub struct GripperSection {
 impl Default for GripperSection {
     fn default() -> Self {
         Self {
-            grip_force_n: 40.0,
-            pad_friction: 0.9,
+            grip_force_n: 60.0,
+            pad_friction: 1.0,
             open_clearance_m: 0.012,
         }
     }
