@@ -1,8 +1,17 @@
 //! Batches of sorting trials: the per-trial record, running trials in parallel and
 //! deterministically, streaming them to disk, and the reports built from them.
 
+mod batch_plan;
+mod junit;
+mod report;
 mod trial_record;
 
+pub use batch_plan::{BatchPlan, Shard, ShardError, trial_seed};
+pub use junit::{junit_xml, testcase_name, xml_escape};
+pub use report::{
+    AcceptConfusion, BatchReport, CycleTime, ErrorStats, Gate, Metrology, ReportMeta, Sorting,
+    StageTiming, StageTimings, Timing, VerdictCounts, Z95, exit_code, passes_gate, wilson_interval,
+};
 pub use trial_record::{
     DecisionRecord, FailureReason, Outcome, PartRecord, Perception, TrialRecord, TrialTiming,
 };
