@@ -2,11 +2,20 @@
 //! deterministically, streaming them to disk, and the reports built from them.
 
 mod batch_plan;
+mod batch_runner;
+mod error;
+mod interrupt;
 mod junit;
+mod progress_bar;
 mod report;
 mod trial_record;
 
 pub use batch_plan::{BatchPlan, Shard, ShardError, trial_seed};
+pub use batch_runner::{
+    BatchSummary, JUNIT_FILE, REPORT_FILE, TRIALS_FILE, run_batch, write_reports,
+};
+pub use error::BatchError;
+pub use interrupt::cancel_on_signals;
 pub use junit::{junit_xml, testcase_name, xml_escape};
 pub use report::{
     AcceptConfusion, BatchReport, CycleTime, ErrorStats, Gate, Metrology, ReportMeta, Sorting,
