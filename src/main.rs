@@ -22,6 +22,8 @@ enum Command {
     Ik(cli::kinematics::IkArgs),
     /// Drive the simulated arm through random IK targets and report tracking errors.
     Demo(cli::demo::DemoArgs),
+    /// Merge `twincell run --shard` outputs into one batch's trials, report and JUnit files.
+    Merge(cli::merge::MergeArgs),
 }
 
 fn main() -> ExitCode {
@@ -37,6 +39,7 @@ fn main() -> ExitCode {
         Command::Fk(args) => cli::kinematics::run_fk(&args),
         Command::Ik(args) => cli::kinematics::run_ik(&args),
         Command::Demo(args) => cli::demo::run_demo(&args),
+        Command::Merge(args) => cli::merge::run(&args),
     };
     match result {
         Ok(code) => code,

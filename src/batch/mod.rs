@@ -6,6 +6,7 @@ mod batch_runner;
 mod error;
 mod interrupt;
 mod junit;
+mod merge;
 mod progress_bar;
 mod report;
 mod trial_record;
@@ -17,6 +18,7 @@ pub use batch_runner::{
 pub use error::BatchError;
 pub use interrupt::cancel_on_signals;
 pub use junit::{junit_xml, testcase_name, xml_escape};
+pub use merge::{MergeError, MergeSummary, merge_shards};
 pub use report::{
     AcceptConfusion, BatchReport, CycleTime, ErrorStats, Gate, Metrology, ReportMeta, Sorting,
     StageTiming, StageTimings, Timing, VerdictCounts, Z95, exit_code, passes_gate, wilson_interval,
