@@ -517,3 +517,39 @@ fn merge_binary_rejects_malformed_lines_naming_file_and_line() {
     assert_eq!(code, 2, "{stderr}");
     assert!(stderr.contains("report.json"), "{stderr}");
 }
+
+/// A cell that sends its own process SIGTERM in trial `at`, as `kill` or Kubernetes would.
+#[cfg(unix)]
+struct SignalledCell {
+    at: u32,
+}
+
+#[cfg(unix)]
+impl TrialRunner for SignalledCell {
+    fn run_trial(&self, index: u32, seed: u64) -> TrialRecord {
+        if index == self.at {
+            signal_hook::low_level::raise(signal_hook::consts::SIGTERM).expect("raise");
+        }
+        FakeCell::default().run_trial(index, seed)
+    }
+}
+
+#[cfg(unix)]
+#[test]
+fn sigterm_interrupts_the_batch_through_cancel_on_signals() {
+    let flag = Arc::new(AtomicBool::new(false));
+    twincell::batch::cancel_on_signals(&flag).expect("handlers installed");
+    let dir = out_dir("sigterm");
+    let summary = run_batch(
+        &SignalledCell { at: 4 },
+        &plan(20, 1, None),
+        &dir,
+        &flag,
+        false,
+    )
+    .expect("batch runs");
+    assert!(flag.load(Ordering::SeqCst));
+    assert!(summary.report.interrupted);
+    assert_eq!(summary.report.trials, 5);
+    assert_eq!(without_timing(&dir).len(), 5);
+}
