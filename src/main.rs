@@ -24,6 +24,8 @@ enum Command {
     Demo(cli::demo::DemoArgs),
     /// Measure every bore (dark bore inside a bright rim) in images.
     Measure(cli::measure::MeasureArgs),
+    /// Merge `twincell run --shard` outputs into one batch's trials, report and JUnit files.
+    Merge(cli::merge::MergeArgs),
 }
 
 fn main() -> ExitCode {
@@ -40,6 +42,7 @@ fn main() -> ExitCode {
         Command::Ik(args) => cli::kinematics::run_ik(&args),
         Command::Demo(args) => cli::demo::run_demo(&args),
         Command::Measure(args) => cli::measure::run(&args),
+        Command::Merge(args) => cli::merge::run(&args),
     };
     match result {
         Ok(code) => code,

@@ -1,8 +1,28 @@
 //! Batches of sorting trials: the per-trial record, running trials in parallel and
 //! deterministically, streaming them to disk, and the reports built from them.
 
+mod batch_plan;
+mod batch_runner;
+mod error;
+mod interrupt;
+mod junit;
+mod merge;
+mod progress_bar;
+mod report;
 mod trial_record;
 
+pub use batch_plan::{BatchPlan, Shard, ShardError, trial_seed};
+pub use batch_runner::{
+    BatchSummary, JUNIT_FILE, REPORT_FILE, TRIALS_FILE, run_batch, write_reports,
+};
+pub use error::BatchError;
+pub use interrupt::cancel_on_signals;
+pub use junit::{junit_xml, testcase_name, xml_escape};
+pub use merge::{MergeError, MergeSummary, merge_shards};
+pub use report::{
+    AcceptConfusion, BatchReport, CycleTime, ErrorStats, Gate, Metrology, ReportMeta, Sorting,
+    StageTiming, StageTimings, Timing, VerdictCounts, Z95, exit_code, passes_gate, wilson_interval,
+};
 pub use trial_record::{
     DecisionRecord, FailureReason, Outcome, PartRecord, Perception, TrialRecord, TrialTiming,
 };

@@ -738,9 +738,23 @@ impl<'a> Trial<'a> {
             for c in physics.bodies.get(self.cell.part_body).unwrap().colliders() {
                 for pair in physics.narrow_phase.contact_pairs_with(*c) {
                     for m in pair.manifolds() {
-                        let n: f32 = m.points.iter().map(|p| p.data.impulse).sum::<f32>() / 0.0041667;
-                        let t: f32 = m.points.iter().map(|p| p.data.tangent_impulse.norm()).sum::<f32>() / 0.0041667;
-                        info += &format!(" [n {:.1} t {:.1} pts {} normal {:.2} {:.2} {:.2}]", n, t, m.points.len(), m.data.normal.x, m.data.normal.y, m.data.normal.z);
+                        let n: f32 =
+                            m.points.iter().map(|p| p.data.impulse).sum::<f32>() / 0.0041667;
+                        let t: f32 = m
+                            .points
+                            .iter()
+                            .map(|p| p.data.tangent_impulse.norm())
+                            .sum::<f32>()
+                            / 0.0041667;
+                        info += &format!(
+                            " [n {:.1} t {:.1} pts {} normal {:.2} {:.2} {:.2}]",
+                            n,
+                            t,
+                            m.points.len(),
+                            m.data.normal.x,
+                            m.data.normal.y,
+                            m.data.normal.z
+                        );
                     }
                 }
             }
@@ -749,14 +763,32 @@ impl<'a> Trial<'a> {
             for (name, body) in self.cell.arm.link_bodies() {
                 if name.starts_with("finger") {
                     let p = tcp.inverse() * self.cell.body_pose(*body).unwrap();
-                    fingers += &format!(" {name} {:.4} {:.4} {:.4}", p.translation.x, p.translation.y, p.translation.z);
+                    fingers += &format!(
+                        " {name} {:.4} {:.4} {:.4}",
+                        p.translation.x, p.translation.y, p.translation.z
+                    );
                 }
             }
             let _ = info;
             let axis = (now.rotation * tcp_from_part.rotation.inverse()).scaled_axis();
             let _ = fingers;
             let part_in_tcp = now.translation.vector;
-            eprintln!("h t={:.3} {phase} d {:.4} {:.4} {:.4} rot {:.4} axis {:.4} {:.4} {:.4} part_in_tcp {:.4} {:.4} {:.4} jaws {:?} forces {:?}", self.cell.world.time_s(), d.x, d.y, d.z, ang, axis.x, axis.y, axis.z, part_in_tcp.x, part_in_tcp.y, part_in_tcp.z, self.cell.arm.finger_positions_m(&self.cell.world), 0);
+            eprintln!(
+                "h t={:.3} {phase} d {:.4} {:.4} {:.4} rot {:.4} axis {:.4} {:.4} {:.4} part_in_tcp {:.4} {:.4} {:.4} jaws {:?} forces {:?}",
+                self.cell.world.time_s(),
+                d.x,
+                d.y,
+                d.z,
+                ang,
+                axis.x,
+                axis.y,
+                axis.z,
+                part_in_tcp.x,
+                part_in_tcp.y,
+                part_in_tcp.z,
+                self.cell.arm.finger_positions_m(&self.cell.world),
+                0
+            );
         }
         let drift = (now.translation.vector - tcp_from_part.translation.vector).norm();
         if drift <= self.scenario.task.slip_tolerance_m {
@@ -809,7 +841,11 @@ impl<'a> Trial<'a> {
         // The jaws travel at most JAW_SPEED_M_S, like a real gripper's drive.
         let step = JAW_SPEED_M_S * dt;
         self.finger_target_m += (self.finger_command_m - self.finger_target_m).clamp(-step, step);
-        self.cell.arm.drive_gripper(&mut self.cell.world, self.finger_target_m, self.grip_force_n);
+        self.cell.arm.drive_gripper(
+            &mut self.cell.world,
+            self.finger_target_m,
+            self.grip_force_n,
+        );
         let started = Instant::now();
         self.cell.world.step_with_hooks(&self.cell.conveyor);
         self.timing.physics_ms += started.elapsed().as_secs_f64() * 1e3;

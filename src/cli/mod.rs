@@ -6,6 +6,7 @@ use std::process::ExitCode;
 pub mod demo;
 pub mod kinematics;
 pub mod measure;
+pub mod merge;
 
 /// Exit code for bad input (the message names the file, key and reason).
 pub const EXIT_BAD_INPUT: u8 = 2;

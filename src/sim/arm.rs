@@ -40,10 +40,16 @@ const JAW_DAMPING_N_S_M: f64 = 120.0;
 /// Puts every robot collider in one collision group that ignores itself: links that meet at
 /// joints, and the jaws riding on the gripper, never push on each other.
 fn isolate_robot_colliders(world: &mut World, bodies: impl Iterator<Item = RigidBodyHandle>) {
-    let groups = InteractionGroups::new(Group::GROUP_1, Group::ALL.difference(Group::GROUP_1), InteractionTestMode::And);
+    let groups = InteractionGroups::new(
+        Group::GROUP_1,
+        Group::ALL.difference(Group::GROUP_1),
+        InteractionTestMode::And,
+    );
     let physics = &mut world.physics;
     for body in bodies {
-        let Some(rb) = physics.bodies.get(body) else { continue };
+        let Some(rb) = physics.bodies.get(body) else {
+            continue;
+        };
         for handle in rb.colliders().to_vec() {
             if let Some(collider) = physics.colliders.get_mut(handle) {
                 collider.set_collision_groups(groups);
@@ -139,7 +145,8 @@ impl SimArm {
         // The jaws are not joints of the arm's multibody: rapier's friction between a multibody
         // link and a free body let a firmly held part creep down the pads. They are kinematic
         // bodies driven by the gripper's own force-controlled jaw drive (see `drive_jaws`).
-        let joint_name = |j: &rapier3d_urdf::UrdfJoint| description.joints[j.urdf_joint_index].name.clone();
+        let joint_name =
+            |j: &rapier3d_urdf::UrdfJoint| description.joints[j.urdf_joint_index].name.clone();
         let (finger_joints, arm_joints): (Vec<_>, Vec<_>) = robot
             .joints
             .drain(..)
@@ -206,10 +213,12 @@ impl SimArm {
             finger_bodies[i] = handles.links[joint.link2].body;
             // The URDF joint's frames are relative to the gripper link, whose pose the carrier
             // shares.
-            fingers[i] = world
-                .physics
-                .impulse_joints
-                .insert(jaw_carrier, finger_bodies[i], joint.joint, true);
+            fingers[i] = world.physics.impulse_joints.insert(
+                jaw_carrier,
+                finger_bodies[i],
+                joint.joint,
+                true,
+            );
         }
         isolate_robot_colliders(world, handles.links.iter().map(|l| l.body));
         let gripper_body = handles.links[finger_joints[0].link1].body;
@@ -368,7 +377,8 @@ impl SimArm {
             }
             for (body, sign) in self.finger_bodies.iter().zip(FINGER_SIGNS) {
                 if let Some(finger) = physics.bodies.get_mut(*body) {
-                    let offset = Pose::from_translation(Vector::new((sign * pad_offset_m) as f32, 0.0, 0.0));
+                    let offset =
+                        Pose::from_translation(Vector::new((sign * pad_offset_m) as f32, 0.0, 0.0));
                     finger.set_position(gripper * offset, true);
                     finger.set_linvel(Vector::ZERO, true);
                     finger.set_angvel(Vector::ZERO, true);
@@ -408,4 +418,3 @@ fn with_joint_mut(
         edit(&mut link.joint.data);
     }
 }
-

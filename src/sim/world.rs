@@ -53,9 +53,15 @@ impl World {
         // held by 40 N per finger creep down the pads under its own weight.
         physics.integration_parameters.friction_model = FrictionModel::Coulomb;
         let env = |k: &str| std::env::var(k).ok().and_then(|v| v.parse::<f32>().ok());
-        if let Some(v) = env("TC_IT") { physics.integration_parameters.num_solver_iterations = v as usize; }
-        if let Some(v) = env("TC_PGS") { physics.integration_parameters.num_internal_pgs_iterations = v as usize; }
-        if let Some(v) = env("TC_FB") { physics.integration_parameters.friction_in_bias_pass = v > 0.0; }
+        if let Some(v) = env("TC_IT") {
+            physics.integration_parameters.num_solver_iterations = v as usize;
+        }
+        if let Some(v) = env("TC_PGS") {
+            physics.integration_parameters.num_internal_pgs_iterations = v as usize;
+        }
+        if let Some(v) = env("TC_FB") {
+            physics.integration_parameters.friction_in_bias_pass = v > 0.0;
+        }
         physics.integration_parameters.contact_softness = SpringCoefficients::new(
             env("TC_F").unwrap_or(params.contact_frequency_hz as f32),
             env("TC_Z").unwrap_or(params.contact_damping_ratio as f32),

@@ -1,0 +1,622 @@
+//! `report.json`: the statistics of a batch, built from its trial records alone.
+
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+
+use serde::{Deserialize, Serialize};
+
+use super::{Outcome, Perception, Shard, TrialRecord, TrialTiming};
+
+/// z for a two-sided 95 % interval.
+pub const Z95: f64 = 1.959964;
+
+/// Wilson score interval `[low, high]` for `successes` out of `trials` at normal quantile `z`.
+///
+/// `[0, 1]` when there are no trials: nothing is known.
+pub fn wilson_interval(successes: u32, trials: u32, z: f64) -> [f64; 2] {
+    if trials == 0 {
+        return [0.0, 1.0];
+    }
+    let n = f64::from(trials);
+    let p = f64::from(successes.min(trials)) / n;
+    let z2 = z * z;
+    let denom = 1.0 + z2 / n;
+    let centre = (p + z2 / (2.0 * n)) / denom;
+    let half = z * (p * (1.0 - p) / n + z2 / (4.0 * n * n)).sqrt() / denom;
+    [(centre - half).max(0.0), (centre + half).min(1.0)]
+}
+
+/// Whether `success_rate` passes a `--min-success` gate (always, when there is none).
+pub fn passes_gate(success_rate: f64, min_success: Option<f64>) -> bool {
+    min_success.is_none_or(|min| success_rate >= min)
+}
+
+/// The process exit code for a finished batch: 0 when it completed and passed its gate, else 1.
+///
+/// An interrupted batch exits 1 even without a gate: its statistics cover only part of the
+/// planned trials, so it must not read as a pass to a script or CI job.
+pub fn exit_code(report: &BatchReport) -> u8 {
+    let gate_ok = report.gate.as_ref().is_none_or(|gate| gate.passed);
+    if gate_ok && !report.interrupted { 0 } else { 1 }
+}
+
+/// What a report says about its batch besides the records: identity, shard, how it ended.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ReportMeta {
+    /// Scenario name.
+    pub scenario: String,
+    /// Scenario seed.
+    pub seed: u64,
+    /// Perception mode.
+    pub perception: Perception,
+    /// Trials of the whole scenario (`--trials`), before sharding.
+    pub scenario_trials: u32,
+    /// The shard these records are, if any.
+    pub shard: Option<Shard>,
+    /// Whether the batch stopped early on a cancellation.
+    pub interrupted: bool,
+    /// The `--min-success` gate, if any.
+    pub min_success: Option<f64>,
+}
+
+/// Absolute-error statistics of one measured quantity, mm.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ErrorStats {
+    /// Trials with both a measured and a true value.
+    pub count: u32,
+    /// Mean absolute error, mm.
+    pub mean_mm: f64,
+    /// 95th percentile (nearest rank) of the absolute error, mm.
+    pub p95_mm: f64,
+    /// Largest absolute error, mm.
+    pub max_mm: f64,
+}
+
+/// Measured vs true bore geometry over the trials that have both a part and a decision.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Metrology {
+    /// Trials with both a part and a decision.
+    pub count: u32,
+    /// |measured - true| roundness; `null` when nothing was measured.
+    pub roundness_error_mm: Option<ErrorStats>,
+    /// |measured - true| mean bore diameter; `null` when nothing was measured.
+    pub bore_diameter_error_mm: Option<ErrorStats>,
+}
+
+/// Counts of decided verdicts for one true verdict.
+#[derive(Debug, Clone, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct VerdictCounts {
+    /// Decided accept.
+    pub accept: u32,
+    /// Decided reject.
+    pub reject: u32,
+}
+
+/// Accept/reject confusion matrix: true verdict (outer) vs decided verdict (inner).
+#[derive(Debug, Clone, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct AcceptConfusion {
+    /// Parts the truth accepts.
+    pub truly_accept: VerdictCounts,
+    /// Parts the truth rejects.
+    pub truly_reject: VerdictCounts,
+}
+
+/// How the sorter's decisions compare with the truth.
+#[derive(Debug, Clone, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Sorting {
+    /// Trials with both a part and a decision.
+    pub count: u32,
+    /// True accept/reject vs decided accept/reject.
+    pub accept_reject: AcceptConfusion,
+    /// True part type -> detected type -> count.
+    pub part_type: BTreeMap<String, BTreeMap<String, u32>>,
+}
+
+/// Simulated cycle-time statistics over the successful trials, s.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CycleTime {
+    /// Successful trials counted.
+    pub count: u32,
+    /// Mean, s.
+    pub mean: f64,
+    /// Median (nearest rank), s.
+    pub p50: f64,
+    /// 95th percentile (nearest rank), s.
+    pub p95: f64,
+}
+
+/// Wall-clock cost of one stage summed over the trials.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct StageTiming {
+    /// Sum over trials, s.
+    pub total_s: f64,
+    /// Mean per trial, ms.
+    pub mean_ms: f64,
+}
+
+/// Per-stage wall-clock sums and means from the records' `timing` (not deterministic).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct StageTimings {
+    /// Whole trial.
+    pub trial: StageTiming,
+    /// Physics stepping.
+    pub physics: StageTiming,
+    /// Camera rendering.
+    pub render: StageTiming,
+    /// Detector.
+    pub detect: StageTiming,
+    /// Metrology.
+    pub metrology: StageTiming,
+    /// IK, trajectories, collision checks.
+    pub planning: StageTiming,
+}
+
+/// Wall-clock figures: the only part of a report that differs between identical runs.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct Timing {
+    /// Per-stage sums and means.
+    pub stages: StageTimings,
+    /// Elapsed time of the batch itself, s (absent for merged reports).
+    pub batch_wall_s: Option<f64>,
+    /// Worker threads used (absent for merged reports).
+    pub jobs: Option<usize>,
+}
+
+/// The `--min-success` gate and its verdict.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Gate {
+    /// Least success rate that passes.
+    pub min_success: f64,
+    /// Whether `success_rate >= min_success` (an interrupted batch still fails its exit code).
+    pub passed: bool,
+}
+
+/// The contents of `report.json`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct BatchReport {
+    /// Scenario name.
+    pub scenario: String,
+    /// Scenario seed.
+    pub seed: u64,
+    /// Perception mode: `camera` is the product, `oracle` is ground truth for diagnosis.
+    pub perception: Perception,
+    /// What the perception mode means for these numbers, in words.
+    pub perception_note: String,
+    /// Trials of the whole scenario (`--trials`), before sharding.
+    pub scenario_trials: u32,
+    /// The shard these records are, or `null` for a whole or merged batch.
+    pub shard: Option<Shard>,
+    /// Whether the batch stopped early; the statistics then cover the finished trials only.
+    pub interrupted: bool,
+    /// Trials recorded.
+    pub trials: u32,
+    /// Successful trials.
+    pub successes: u32,
+    /// `successes / trials` (0 when there are no trials).
+    pub success_rate: f64,
+    /// Wilson score 95 % interval of the success rate, `[low, high]`.
+    pub wilson95: [f64; 2],
+    /// Failure reason -> count.
+    pub failures: BTreeMap<String, u32>,
+    /// Trials in which the bottle was picked.
+    pub distractor_picks: u32,
+    /// Trials in which the robot touched the bottle.
+    pub distractor_touches: u32,
+    /// Largest bottle displacement over the trials, mm.
+    pub distractor_max_displacement_mm: f64,
+    /// Measured vs true bore geometry.
+    pub metrology: Metrology,
+    /// Decisions vs truth.
+    pub sorting: Sorting,
+    /// Simulated cycle time of the successful trials; `null` when none succeeded.
+    pub cycle_time_s: Option<CycleTime>,
+    /// Successful parts per minute of simulated cycle time: `successes / (sum over all
+    /// recorded trials of cycle_time_s / 60)`. Failed trials count in the denominator
+    /// because they occupy the cell too; `null` when the summed cycle time is 0.
+    pub parts_per_minute: Option<f64>,
+    /// The `--min-success` gate, if any.
+    pub gate: Option<Gate>,
+    /// Wall-clock figures (not deterministic).
+    pub timing: Timing,
+}
+
+/// Nearest-rank percentile `q` in (0, 1] of ascending `sorted`; `None` when empty.
+fn percentile(sorted: &[f64], q: f64) -> Option<f64> {
+    let n = sorted.len();
+    if n == 0 {
+        return None;
+    }
+    let rank = (q * n as f64).ceil() as usize;
+    sorted.get(rank.clamp(1, n) - 1).copied()
+}
+
+fn mean(values: &[f64]) -> f64 {
+    if values.is_empty() {
+        0.0
+    } else {
+        values.iter().sum::<f64>() / values.len() as f64
+    }
+}
+
+fn error_stats(mut errors: Vec<f64>) -> Option<ErrorStats> {
+    errors.sort_by(f64::total_cmp);
+    Some(ErrorStats {
+        count: u32::try_from(errors.len()).unwrap_or(u32::MAX),
+        mean_mm: mean(&errors),
+        p95_mm: percentile(&errors, 0.95)?,
+        max_mm: *errors.last()?,
+    })
+}
+
+fn count(n: usize) -> u32 {
+    u32::try_from(n).unwrap_or(u32::MAX)
+}
+
+fn stage(records: &[TrialRecord], ms: impl Fn(&TrialTiming) -> f64) -> StageTiming {
+    let values: Vec<f64> = records.iter().map(|r| ms(&r.timing)).collect();
+    StageTiming {
+        total_s: values.iter().sum::<f64>() / 1000.0,
+        mean_ms: mean(&values),
+    }
+}
+
+impl Perception {
+    /// The mode's name as written in reports.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::Camera => "camera",
+            Self::Oracle => "oracle",
+        }
+    }
+
+    /// What the mode means for a report's numbers.
+    pub fn note(self) -> &'static str {
+        match self {
+            Self::Camera => "camera: rendered images through detector and metrology",
+            Self::Oracle => {
+                "ORACLE: perception read from the simulated world's ground truth; \
+                 for diagnosing control failures only, not a measure of the product"
+            }
+        }
+    }
+}
+
+impl BatchReport {
+    /// The report of `records` (in any order), described by `meta`.
+    pub fn from_records(meta: &ReportMeta, records: &[TrialRecord]) -> Self {
+        let trials = count(records.len());
+        let successes = count(
+            records
+                .iter()
+                .filter(|r| r.outcome == Outcome::Success)
+                .count(),
+        );
+        let success_rate = if trials == 0 {
+            0.0
+        } else {
+            f64::from(successes) / f64::from(trials)
+        };
+        let mut failures = BTreeMap::new();
+        for record in records.iter().filter(|r| r.outcome == Outcome::Failure) {
+            let reason = record.failure.map_or("unspecified", |f| f.as_str());
+            *failures.entry(reason.to_owned()).or_insert(0) += 1;
+        }
+
+        let mut roundness_errors = Vec::new();
+        let mut bore_errors = Vec::new();
+        let mut sorting = Sorting::default();
+        for record in records {
+            let (Some(part), Some(decision)) = (&record.part, &record.decision) else {
+                continue;
+            };
+            sorting.count += 1;
+            if let Some(measured) = decision.measured_roundness_mm {
+                roundness_errors.push((measured - part.true_roundness_mm).abs());
+            }
+            if let Some(measured) = decision.measured_bore_diameter_mm {
+                bore_errors.push((measured - part.true_bore_diameter_mm).abs());
+            }
+            let truth = if part.truly_acceptable {
+                &mut sorting.accept_reject.truly_accept
+            } else {
+                &mut sorting.accept_reject.truly_reject
+            };
+            if decision.accept {
+                truth.accept += 1;
+            } else {
+                truth.reject += 1;
+            }
+            *sorting
+                .part_type
+                .entry(part.part_type.clone())
+                .or_default()
+                .entry(decision.detected_type.clone())
+                .or_insert(0) += 1;
+        }
+
+        let mut cycle_times: Vec<f64> = records
+            .iter()
+            .filter(|r| r.outcome == Outcome::Success)
+            .map(|r| r.cycle_time_s)
+            .collect();
+        cycle_times.sort_by(f64::total_cmp);
+        let cycle_time_s = match (
+            percentile(&cycle_times, 0.5),
+            percentile(&cycle_times, 0.95),
+        ) {
+            (Some(p50), Some(p95)) => Some(CycleTime {
+                count: count(cycle_times.len()),
+                mean: mean(&cycle_times),
+                p50,
+                p95,
+            }),
+            _ => None,
+        };
+        let total_cycle_min = records.iter().map(|r| r.cycle_time_s).sum::<f64>() / 60.0;
+        let parts_per_minute =
+            (total_cycle_min > 0.0).then(|| f64::from(successes) / total_cycle_min);
+
+        Self {
+            scenario: meta.scenario.clone(),
+            seed: meta.seed,
+            perception: meta.perception,
+            perception_note: meta.perception.note().to_owned(),
+            scenario_trials: meta.scenario_trials,
+            shard: meta.shard,
+            interrupted: meta.interrupted,
+            trials,
+            successes,
+            success_rate,
+            wilson95: wilson_interval(successes, trials, Z95),
+            failures,
+            distractor_picks: count(records.iter().filter(|r| r.distractor_picked).count()),
+            distractor_touches: count(records.iter().filter(|r| r.distractor_touched).count()),
+            distractor_max_displacement_mm: records
+                .iter()
+                .map(|r| r.distractor_displacement_mm)
+                .fold(0.0, f64::max),
+            metrology: Metrology {
+                count: sorting.count,
+                roundness_error_mm: error_stats(roundness_errors),
+                bore_diameter_error_mm: error_stats(bore_errors),
+            },
+            sorting,
+            cycle_time_s,
+            parts_per_minute,
+            gate: meta.min_success.map(|min_success| Gate {
+                min_success,
+                passed: passes_gate(success_rate, Some(min_success)),
+            }),
+            timing: Timing {
+                stages: StageTimings {
+                    trial: stage(records, |t| t.wall_ms),
+                    physics: stage(records, |t| t.physics_ms),
+                    render: stage(records, |t| t.render_ms),
+                    detect: stage(records, |t| t.detect_ms),
+                    metrology: stage(records, |t| t.metrology_ms),
+                    planning: stage(records, |t| t.planning_ms),
+                },
+                batch_wall_s: None,
+                jobs: None,
+            },
+        }
+    }
+
+    /// A fixed-width plain-text summary for the end of a run.
+    pub fn summary_table(&self) -> String {
+        let mut out = String::new();
+        // Writing to a String cannot fail; the results are ignored on purpose.
+        let _ = writeln!(
+            out,
+            "scenario {:?}  seed {}  perception {}",
+            self.scenario,
+            self.seed,
+            self.perception.as_str()
+        );
+        if self.perception == Perception::Oracle {
+            let _ = writeln!(out, "  ** {} **", self.perception_note);
+        }
+        let scope = match self.shard {
+            Some(shard) => format!("shard {shard} of {} trials", self.scenario_trials),
+            None => format!("of {} planned", self.scenario_trials),
+        };
+        let stopped = if self.interrupted {
+            "  INTERRUPTED"
+        } else {
+            ""
+        };
+        let _ = writeln!(
+            out,
+            "{:<22}{:>8}  ({scope}){stopped}",
+            "trials", self.trials
+        );
+        let _ = writeln!(out, "{:<22}{:>8}", "successes", self.successes);
+        let _ = writeln!(
+            out,
+            "{:<22}{:>7.1}%  Wilson 95% [{:.1}%, {:.1}%]",
+            "success rate",
+            100.0 * self.success_rate,
+            100.0 * self.wilson95[0],
+            100.0 * self.wilson95[1]
+        );
+        let _ = writeln!(out, "failures by reason");
+        if self.failures.is_empty() {
+            let _ = writeln!(out, "  {:<20}{:>8}", "(none)", 0);
+        }
+        for (reason, n) in &self.failures {
+            let _ = writeln!(out, "  {reason:<20}{n:>8}");
+        }
+        let _ = writeln!(
+            out,
+            "{:<22}picks {}  touches {}  max displacement {:.2} mm",
+            "distractor",
+            self.distractor_picks,
+            self.distractor_touches,
+            self.distractor_max_displacement_mm
+        );
+        let _ = writeln!(
+            out,
+            "{:<22}{:>8}{:>10}{:>10}{:>10}",
+            "metrology |error| mm", "n", "mean", "p95", "max"
+        );
+        for (name, stats) in [
+            ("roundness", &self.metrology.roundness_error_mm),
+            ("bore diameter", &self.metrology.bore_diameter_error_mm),
+        ] {
+            match stats {
+                Some(s) => {
+                    let _ = writeln!(
+                        out,
+                        "  {name:<20}{:>8}{:>10.4}{:>10.4}{:>10.4}",
+                        s.count, s.mean_mm, s.p95_mm, s.max_mm
+                    );
+                }
+                None => {
+                    let _ = writeln!(out, "  {name:<20}{:>8}{:>10}{:>10}{:>10}", 0, "-", "-", "-");
+                }
+            }
+        }
+        let _ = writeln!(
+            out,
+            "{:<22}{:>8}{:>10}{:>10}{:>10}",
+            "cycle time s", "n", "mean", "p50", "p95"
+        );
+        match &self.cycle_time_s {
+            Some(c) => {
+                let _ = writeln!(
+                    out,
+                    "  {:<20}{:>8}{:>10.3}{:>10.3}{:>10.3}",
+                    "successful", c.count, c.mean, c.p50, c.p95
+                );
+            }
+            None => {
+                let _ = writeln!(
+                    out,
+                    "  {:<20}{:>8}{:>10}{:>10}{:>10}",
+                    "successful", 0, "-", "-", "-"
+                );
+            }
+        }
+        let ppm = self
+            .parts_per_minute
+            .map_or_else(|| "-".to_owned(), |p| format!("{p:.2}"));
+        let _ = writeln!(out, "{:<22}{:>8}", "parts per minute", ppm);
+        let _ = writeln!(out, "{:<22}{:>8}{:>10}", "wall time", "total s", "mean ms");
+        let stages = &self.timing.stages;
+        for (name, s) in [
+            ("trial", &stages.trial),
+            ("physics", &stages.physics),
+            ("render", &stages.render),
+            ("detect", &stages.detect),
+            ("metrology", &stages.metrology),
+            ("planning", &stages.planning),
+        ] {
+            let _ = writeln!(out, "  {name:<20}{:>8.2}{:>10.2}", s.total_s, s.mean_ms);
+        }
+        if let (Some(wall), Some(jobs)) = (self.timing.batch_wall_s, self.timing.jobs) {
+            let _ = writeln!(out, "{:<22}{wall:>8.2}  on {jobs} jobs", "batch wall s");
+        }
+        if let Some(gate) = &self.gate {
+            let verdict = if gate.passed { "passed" } else { "FAILED" };
+            let _ = writeln!(
+                out,
+                "{:<22}{:>7.1}%  {verdict}",
+                "gate min success",
+                100.0 * gate.min_success
+            );
+        }
+        out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::batch::{DecisionRecord, FailureReason, PartRecord};
+
+    fn close(a: [f64; 2], b: [f64; 2]) -> bool {
+        (a[0] - b[0]).abs() < 5e-5 && (a[1] - b[1]).abs() < 5e-5
+    }
+
+    #[test]
+    fn wilson_matches_known_values() {
+        let w = wilson_interval(49, 50, Z95);
+        assert!(close(w, [0.8950, 0.9965]), "{w:?}");
+        let w = wilson_interval(0, 10, Z95);
+        assert!(close(w, [0.0, 0.2775]), "{w:?}");
+        let w = wilson_interval(10, 10, Z95);
+        assert!(close(w, [0.7225, 1.0]), "{w:?}");
+        let w = wilson_interval(5, 10, Z95);
+        assert!(close(w, [0.2366, 0.7634]), "{w:?}");
+        assert_eq!(wilson_interval(0, 0, Z95), [0.0, 1.0]);
+    }
+
+    #[test]
+    fn percentile_is_nearest_rank() {
+        let v: Vec<f64> = (1..=20).map(f64::from).collect();
+        assert_eq!(percentile(&v, 0.95), Some(19.0));
+        assert_eq!(percentile(&v, 0.5), Some(10.0));
+        assert_eq!(percentile(&[3.0], 0.95), Some(3.0));
+        assert_eq!(percentile(&[], 0.5), None);
+    }
+
+    fn record(trial: u32, ok: bool) -> TrialRecord {
+        let mut r = if ok {
+            let mut r = TrialRecord::failed(trial, 0, FailureReason::Timeout, "");
+            r.outcome = Outcome::Success;
+            r.failure = None;
+            r.detail = None;
+            r
+        } else {
+            TrialRecord::failed(trial, 0, FailureReason::Slipped, "slid")
+        };
+        r.part = Some(PartRecord {
+            part_type: "a".into(),
+            true_roundness_mm: 0.1,
+            true_bore_diameter_mm: 20.0,
+            truly_acceptable: true,
+            correct_bin: "a".into(),
+        });
+        r.decision = Some(DecisionRecord {
+            detected_type: if ok { "a" } else { "b" }.into(),
+            measured_roundness_mm: Some(0.1 + 0.01 * f64::from(trial)),
+            measured_bore_diameter_mm: None,
+            accept: ok,
+            bin: "a".into(),
+        });
+        r.cycle_time_s = 10.0;
+        r
+    }
+
+    #[test]
+    fn report_counts_from_records() {
+        let meta = ReportMeta {
+            scenario: "s".into(),
+            seed: 1,
+            perception: Perception::Oracle,
+            scenario_trials: 4,
+            shard: None,
+            interrupted: false,
+            min_success: Some(0.8),
+        };
+        let records: Vec<_> = (0..4).map(|i| record(i, i != 2)).collect();
+        let report = BatchReport::from_records(&meta, &records);
+        assert_eq!((report.trials, report.successes), (4, 3));
+        assert_eq!(report.failures.get("slipped"), Some(&1));
+        assert_eq!(report.sorting.accept_reject.truly_accept.accept, 3);
+        assert_eq!(report.sorting.accept_reject.truly_accept.reject, 1);
+        assert_eq!(report.sorting.part_type["a"]["b"], 1);
+        let roundness = report.metrology.roundness_error_mm.as_ref();
+        assert!((roundness.map_or(0.0, |s| s.max_mm) - 0.03).abs() < 1e-12);
+        assert!(report.metrology.bore_diameter_error_mm.is_none());
+        // 3 parts over 40 s of cycle time.
+        assert!((report.parts_per_minute.unwrap_or(0.0) - 4.5).abs() < 1e-12);
+        assert_eq!(report.gate.as_ref().map(|g| g.passed), Some(false));
+        assert_eq!(exit_code(&report), 1);
+        let table = report.summary_table();
+        assert!(table.contains("ORACLE"), "{table}");
+        assert!(table.contains("slipped"), "{table}");
+        let json = serde_json::to_value(&report).unwrap_or_default();
+        assert_eq!(json["perception"], "oracle");
+    }
+}
