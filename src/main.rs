@@ -20,6 +20,8 @@ enum Command {
     Fk(cli::kinematics::FkArgs),
     /// Every joint solution for a flange pose (inverse kinematics).
     Ik(cli::kinematics::IkArgs),
+    /// Run a scenario's sorting trials as a headless batch.
+    Run(cli::run::RunArgs),
     /// Drive the simulated arm through random IK targets and report tracking errors.
     Demo(cli::demo::DemoArgs),
     /// Measure every bore (dark bore inside a bright rim) in images.
@@ -41,6 +43,7 @@ fn main() -> ExitCode {
         Command::Fk(args) => cli::kinematics::run_fk(&args),
         Command::Ik(args) => cli::kinematics::run_ik(&args),
         Command::Demo(args) => cli::demo::run_demo(&args),
+        Command::Run(args) => cli::run::run(&args),
         Command::Measure(args) => cli::measure::run(&args),
         Command::Merge(args) => cli::merge::run(&args),
     };

@@ -1,0 +1,85 @@
+//! `twincell run`: a scenario's trials as a headless batch.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
+
+use anyhow::Result;
+use clap::Args;
+use twincell::batch::{BatchPlan, Perception, Shard, cancel_on_signals, run_batch};
+use twincell::cell::CellTrialRunner;
+use twincell::scenario::Scenario;
+
+use super::BadInput;
+
+/// Arguments of `twincell run`.
+#[derive(Debug, Args)]
+pub struct RunArgs {
+    /// The scenario file (TOML).
+    scenario: PathBuf,
+    /// Scenario seed (overrides the file's).
+    #[arg(long)]
+    seed: Option<u64>,
+    /// Number of trials (overrides the file's).
+    #[arg(long)]
+    trials: Option<u32>,
+    /// Output directory for trials.jsonl, report.json and junit.xml.
+    #[arg(long, value_name = "DIR", default_value = "out")]
+    out: PathBuf,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    jobs: Option<usize>,
+    /// Run only shard I of N (trials with index % N == I).
+    #[arg(long, value_name = "I/N")]
+    shard: Option<Shard>,
+    /// Where perception's answers come from.
+    #[arg(long, value_enum, default_value_t = Perception::Camera)]
+    perception: Perception,
+    /// Least success rate that passes, in [0, 1] (exit code 1 below it).
+    #[arg(long, value_name = "RATE")]
+    min_success: Option<f64>,
+    /// Print report.json to stdout instead of the summary table.
+    #[arg(long)]
+    json: bool,
+}
+
+/// Runs `twincell run`.
+pub fn run(args: &RunArgs) -> Result<ExitCode> {
+    if let Some(rate) = args.min_success
+        && !(0.0..=1.0).contains(&rate)
+    {
+        return Err(BadInput(format!("--min-success: {rate} is not in [0, 1]")).into());
+    }
+    let mut scenario = Scenario::load(&args.scenario).map_err(|e| BadInput(e.to_string()))?;
+    if let Some(seed) = args.seed {
+        scenario.seed = seed;
+    }
+    if let Some(trials) = args.trials {
+        if trials == 0 {
+            return Err(BadInput("--trials: must be at least 1".into()).into());
+        }
+        scenario.trials = trials;
+    }
+    let plan = BatchPlan {
+        scenario_name: scenario.name.clone(),
+        scenario_seed: scenario.seed,
+        perception: args.perception,
+        trials: scenario.trials,
+        jobs: args.jobs,
+        shard: args.shard,
+        min_success: args.min_success,
+    };
+    let runner = CellTrialRunner::new(scenario, &args.scenario, args.perception)
+        .map_err(|e| BadInput(format!("{}: {e}", args.scenario.display())))?;
+    let cancel = Arc::new(AtomicBool::new(false));
+    cancel_on_signals(&cancel)?;
+    let summary = run_batch(&runner, &plan, &args.out, &cancel, !args.json)?;
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&summary.report)?);
+    } else {
+        print!("{}", summary.report.summary_table());
+        println!("results in {}", args.out.display());
+    }
+    Ok(ExitCode::from(summary.exit_code()))
+}
