@@ -7,9 +7,9 @@
 
 use std::f64::consts::{PI, TAU};
 
-use nalgebra::{Isometry3, Vector3};
+use nalgebra::{Isometry3, Matrix3, Vector3};
 
-use super::{ArmModel, DOF, JointVector, KinematicsError};
+use super::{ArmModel, DOF, DhRow, JointVector, KinematicsError};
 
 /// Tolerance by which a pose may lie past the edge of reach and still be clamped onto it.
 const REACH_TOLERANCE: f64 = 1e-9;
@@ -100,6 +100,53 @@ impl IntoIterator for IkSolutions {
     }
 }
 
+/// A rigid transform as a rotation matrix and a translation: cheaper than quaternions here,
+/// since every rotation below is built from a sine and cosine already at hand.
+#[derive(Debug, Clone, Copy)]
+struct Frame {
+    r: Matrix3<f64>,
+    p: Vector3<f64>,
+}
+
+impl Frame {
+    fn from_isometry(iso: &Isometry3<f64>) -> Self {
+        Self {
+            r: *iso.rotation.to_rotation_matrix().matrix(),
+            p: iso.translation.vector,
+        }
+    }
+
+    fn compose(&self, other: &Frame) -> Frame {
+        Frame {
+            r: self.r * other.r,
+            p: self.r * other.p + self.p,
+        }
+    }
+
+    fn inverse(&self) -> Frame {
+        let rt = self.r.transpose();
+        Frame {
+            r: rt,
+            p: -(rt * self.p),
+        }
+    }
+
+    fn transform_point(&self, point: &Vector3<f64>) -> Vector3<f64> {
+        self.r * point + self.p
+    }
+}
+
+/// The DH transform of `row` at an angle given by its sine and cosine.
+fn dh_frame(row: &DhRow, s: f64, c: f64) -> Frame {
+    let (sa, ca) = (row.alpha_rad.sin(), row.cos_alpha());
+    // RotX(alpha) * RotZ(theta), written out.
+    let r = Matrix3::new(c, -s, 0.0, s * ca, c * ca, -sa, s * sa, c * sa, ca);
+    Frame {
+        r,
+        p: Vector3::new(row.a_m, -sa * row.d_m, ca * row.d_m),
+    }
+}
+
 /// The closed-form solver for arms with the AUBO i5's DH structure.
 #[derive(Debug, Clone)]
 pub struct AnalyticIk {
@@ -155,10 +202,9 @@ impl AnalyticIk {
     /// Every solution for a flange pose given in DH frame 0, as DH angles (not yet limited).
     fn solve_dh(&self, flange_in_dh0: &Isometry3<f64>, out: &mut Vec<JointVector>) {
         let dh = &self.arm.dh;
-        let rotation = flange_in_dh0.rotation.to_rotation_matrix();
-        let z6 = rotation.matrix().column(2).into_owned();
-        let p6 = flange_in_dh0.translation.vector;
-        let p5 = p6 - dh[5].d_m * z6;
+        let flange = Frame::from_isometry(flange_in_dh0);
+        let z6 = flange.r.column(2).into_owned();
+        let p5 = flange.p - dh[5].d_m * z6;
 
         let radius = p5.x.hypot(p5.y);
         let offset = self.lateral_offset_m;
@@ -167,64 +213,78 @@ impl AnalyticIk {
         }
         let phi = p5.y.atan2(p5.x);
         let shoulder = (offset / radius).clamp(-1.0, 1.0).asin();
+        let twist12 = dh_frame(&dh[1], 0.0, 1.0);
         for theta1 in [phi + shoulder, phi + PI - shoulder] {
             let (s1, c1) = theta1.sin_cos();
             let joint2_axis = Vector3::new(s1, -c1, 0.0);
             let cos5 = z6.dot(&joint2_axis).clamp(-1.0, 1.0);
-            let axis_in_flange = rotation.transpose() * joint2_axis;
+            let axis_in_flange = flange.r.transpose() * joint2_axis;
             // DH frame 1' = frame 1 twisted onto joint 2's axis: the planar chain starts there.
-            let planar_from_dh0 = (dh[0].transform(theta1) * dh[1].fixed_part()).inverse();
-            let planar_from_flange = planar_from_dh0 * flange_in_dh0;
+            let planar_from_dh0 = dh_frame(&dh[0], s1, c1)
+                .compose(&Frame {
+                    r: twist12.r,
+                    p: Vector3::new(dh[1].a_m, 0.0, 0.0),
+                })
+                .inverse();
+            let planar_from_flange = planar_from_dh0.compose(&flange);
             if (1.0 - cos5.abs()) < WRIST_SINGULAR_ONE_MINUS_COS {
                 // Joints 4 and 6 turn about one axis: the solutions form a family. Take the
                 // member with q6 = 0, or the nearest one that the elbow can reach.
                 let theta5 = if cos5 > 0.0 { 0.0 } else { PI };
-                let p5_planar = planar_from_dh0 * nalgebra::Point3::from(p5);
+                let p5_planar = planar_from_dh0.transform_point(&p5);
                 self.singular_wrist_branch(theta1, theta5, &planar_from_flange, &p5_planar, out);
                 continue;
             }
             let wrist = cos5.acos();
-            for theta5 in [wrist, -wrist] {
-                let s5 = theta5.sin();
-                let theta6 = (axis_in_flange.y / s5).atan2(-axis_in_flange.x / s5);
-                self.planar_branch(theta1, theta5, theta6, &planar_from_flange, out);
+            let s5_abs = (1.0 - cos5 * cos5).max(0.0).sqrt();
+            for (theta5, s5) in [(wrist, s5_abs), (-wrist, -s5_abs)] {
+                let (y6, x6) = (axis_in_flange.y / s5, -axis_in_flange.x / s5);
+                let norm6 = y6.hypot(x6);
+                let theta6 = y6.atan2(x6);
+                let wrist_frame = (theta5, s5, cos5, theta6, y6 / norm6, x6 / norm6);
+                self.planar_branch(theta1, wrist_frame, &planar_from_flange, out);
             }
         }
     }
 
-    /// Where DH frame 4 lies in the planar frame for the given wrist angles.
+    /// Where DH frame 4 lies in the planar frame for the given wrist angles (sines and cosines).
     fn dh4_in_planar(
         &self,
-        theta5: f64,
-        theta6: f64,
-        planar_from_flange: &Isometry3<f64>,
-    ) -> Isometry3<f64> {
+        s5: f64,
+        c5: f64,
+        s6: f64,
+        c6: f64,
+        planar_from_flange: &Frame,
+    ) -> Frame {
         let dh = &self.arm.dh;
-        planar_from_flange * (dh[4].transform(theta5) * dh[5].transform(theta6)).inverse()
+        let dh4_from_flange = dh_frame(&dh[4], s5, c5).compose(&dh_frame(&dh[5], s6, c6));
+        planar_from_flange.compose(&dh4_from_flange.inverse())
     }
 
     /// Solves the planar two-link problem for joints 2-4 and pushes up to two DH solutions.
+    /// `wrist` is (theta5, sin, cos, theta6, sin, cos).
     fn planar_branch(
         &self,
         theta1: f64,
-        theta5: f64,
-        theta6: f64,
-        planar_from_flange: &Isometry3<f64>,
+        wrist: (f64, f64, f64, f64, f64, f64),
+        planar_from_flange: &Frame,
         out: &mut Vec<JointVector>,
     ) {
-        let dh4_in_planar = self.dh4_in_planar(theta5, theta6, planar_from_flange);
-        let p = dh4_in_planar.translation.vector;
+        let (theta5, s5, c5, theta6, s6, c6) = wrist;
+        let dh4_in_planar = self.dh4_in_planar(s5, c5, s6, c6, planar_from_flange);
+        let p = dh4_in_planar.p;
         let (a2, a3) = (self.arm.dh[2].a_m, self.arm.dh[3].a_m);
         let cos3 = (p.x * p.x + p.y * p.y - a2 * a2 - a3 * a3) / (2.0 * a2 * a3);
         if cos3.abs() > 1.0 + REACH_TOLERANCE {
             return;
         }
-        let elbow = cos3.clamp(-1.0, 1.0).acos();
-        let planar_rotation = dh4_in_planar.rotation.to_rotation_matrix();
-        let psi = planar_rotation[(1, 0)].atan2(planar_rotation[(0, 0)]);
-        for theta3 in [elbow, -elbow] {
-            let (s3, c3) = theta3.sin_cos();
-            let theta2 = p.y.atan2(p.x) - (-a3 * s3).atan2(a2 + a3 * c3);
+        let cos3 = cos3.clamp(-1.0, 1.0);
+        let elbow = cos3.acos();
+        let sin_elbow = (1.0 - cos3 * cos3).max(0.0).sqrt();
+        let psi = dh4_in_planar.r[(1, 0)].atan2(dh4_in_planar.r[(0, 0)]);
+        let toward_wrist = p.y.atan2(p.x);
+        for (theta3, s3) in [(elbow, sin_elbow), (-elbow, -sin_elbow)] {
+            let theta2 = toward_wrist - (-a3 * s3).atan2(a2 + a3 * cos3);
             let theta4 = psi - theta2 + theta3;
             out.push([theta1, theta2, theta3, theta4, theta5, theta6]);
         }
@@ -240,8 +300,8 @@ impl AnalyticIk {
         &self,
         theta1: f64,
         theta5: f64,
-        planar_from_flange: &Isometry3<f64>,
-        p5_planar: &nalgebra::Point3<f64>,
+        planar_from_flange: &Frame,
+        p5_planar: &Vector3<f64>,
         out: &mut Vec<JointVector>,
     ) {
         let preferred_theta6 = self.arm.theta_offsets_rad[5];
@@ -255,7 +315,14 @@ impl AnalyticIk {
         candidates.extend((-8..8).map(|k| preferred_theta6 + f64::from(k) * PI / 8.0));
         for theta6 in candidates {
             let before = out.len();
-            self.planar_branch(theta1, theta5, theta6, planar_from_flange, out);
+            let (s6, c6) = theta6.sin_cos();
+            let (s5, c5) = theta5.sin_cos();
+            self.planar_branch(
+                theta1,
+                (theta5, s5, c5, theta6, s6, c6),
+                planar_from_flange,
+                out,
+            );
             if out[before..]
                 .iter()
                 .any(|theta| self.within_limits_modulo_turns(theta))
@@ -275,15 +342,14 @@ impl AnalyticIk {
         &self,
         theta5: f64,
         theta6: f64,
-        planar_from_flange: &Isometry3<f64>,
-        p5_planar: &nalgebra::Point3<f64>,
+        planar_from_flange: &Frame,
+        p5_planar: &Vector3<f64>,
     ) -> Vec<f64> {
         let (a2, a3) = (self.arm.dh[2].a_m, self.arm.dh[3].a_m);
         let d5 = self.arm.dh[4].d_m;
-        let p4 = self
-            .dh4_in_planar(theta5, theta6, planar_from_flange)
-            .translation
-            .vector;
+        let (s5, c5) = theta5.sin_cos();
+        let (s6, c6) = theta6.sin_cos();
+        let p4 = self.dh4_in_planar(s5, c5, s6, c6, planar_from_flange).p;
         let radius = p4.x.hypot(p4.y);
         let (min_reach, max_reach) = ((a2 - a3).abs(), a2 + a3);
         let c = nalgebra::Vector2::new(p5_planar.x, p5_planar.y);
@@ -347,12 +413,23 @@ impl IkSolver for AnalyticIk {
 
 /// Wraps an angle into (-pi, pi].
 fn wrap_angle(angle_rad: f64) -> f64 {
+    // The solver's angles lie within a few turns of zero: subtracting beats `rem_euclid`.
+    if angle_rad.abs() <= PI {
+        return angle_rad;
+    }
     let wrapped = angle_rad.rem_euclid(TAU);
     if wrapped > PI { wrapped - TAU } else { wrapped }
 }
 
 /// Pushes every 2pi-equivalent variant of `q` that lies within the joint limits.
 fn push_limited_variants(arm: &ArmModel, q: &JointVector, out: &mut IkSolutions) {
+    // Common case: limits narrower than a turn leave one candidate per joint.
+    if q.iter().zip(&arm.limits).all(|(&v, limit)| {
+        limit.contains(v) && !limit.contains(v - TAU) && !limit.contains(v + TAU)
+    }) {
+        out.push_distinct(*q);
+        return;
+    }
     let mut choices: [[f64; 3]; DOF] = [[0.0; 3]; DOF];
     let mut counts = [0usize; DOF];
     for joint in 0..DOF {
