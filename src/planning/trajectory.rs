@@ -96,10 +96,10 @@ impl Segment {
         let pieces = path.len().saturating_sub(1).max(1) as f64;
         let mut duration_s: f64 = 0.0;
         for pair in path.windows(2) {
-            for j in 0..DOF {
-                let rate = pieces * (pair[1][j] - pair[0][j]).abs();
-                let v_max = arm.limits[j].max_velocity_rad_s * fraction;
-                let a_max = arm.limits[j].max_accel_rad_s2 * fraction;
+            for (limit, (to, from)) in arm.limits.iter().zip(pair[1].iter().zip(&pair[0])) {
+                let rate = pieces * (to - from).abs();
+                let v_max = limit.max_velocity_rad_s * fraction;
+                let a_max = limit.max_accel_rad_s2 * fraction;
                 duration_s = duration_s
                     .max(QUINTIC_PEAK_VELOCITY * rate / v_max)
                     .max((QUINTIC_PEAK_ACCEL * rate / a_max).sqrt());
