@@ -1,0 +1,75 @@
+//! Cell physics timings (`cargo bench --bench cell`): one step of the world with the arm, the
+//! belt and ten parts, and one whole oracle trial of `paper_50`.
+
+use std::hint::black_box;
+use std::path::Path;
+use std::time::Duration;
+
+use criterion::{Criterion, criterion_group, criterion_main};
+use rapier3d::prelude::*;
+use twincell::batch::{Perception, TrialRunner, trial_seed};
+use twincell::cell::{Cell, CellTrialRunner};
+use twincell::rng::SimRng;
+use twincell::scenario::Scenario;
+
+fn scenario() -> Scenario {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/paper_50.toml");
+    match Scenario::load(&path) {
+        Ok(s) => s,
+        Err(e) => panic!("{e}"),
+    }
+}
+
+fn cell_benches(c: &mut Criterion) {
+    let scenario = scenario();
+    let mut rng = SimRng::new(1);
+    let Ok(mut cell) = Cell::build(&scenario, None, &mut rng) else {
+        panic!("cell builds")
+    };
+    // Nine more tubes on the belt, spaced along it: ten parts in all.
+    let physics = &mut cell.world.physics;
+    for i in 0..9 {
+        let x = -0.7 + 0.09 * f64::from(i);
+        let body = physics.bodies.insert(
+            RigidBodyBuilder::dynamic()
+                .translation(Vector::new(x as f32, -0.45, 0.74))
+                .can_sleep(false),
+        );
+        physics.colliders.insert_with_parent(
+            ColliderBuilder::cylinder(0.04, 0.024)
+                .rotation(Vector::new(std::f32::consts::FRAC_PI_2, 0.0, 0.0))
+                .mass(0.6),
+            body,
+            &mut physics.bodies,
+        );
+    }
+    cell.conveyor.set_speed_m_s(0.05);
+    let mut group = c.benchmark_group("cell");
+    group.measurement_time(Duration::from_secs(5));
+    group.bench_function("physics_step_arm_ten_parts", |b| {
+        b.iter(|| {
+            cell.world.step_with_hooks(&cell.conveyor);
+            black_box(cell.world.time_s())
+        })
+    });
+    let runner = match CellTrialRunner::new(
+        scenario.clone(),
+        Path::new("paper_50.toml"),
+        Perception::Oracle,
+    ) {
+        Ok(r) => r,
+        Err(e) => panic!("{e}"),
+    };
+    group.sample_size(10);
+    group.bench_function("paper_50_oracle_trial", |b| {
+        let mut index = 0;
+        b.iter(|| {
+            index = (index + 1) % scenario.trials;
+            black_box(runner.run_trial(index, trial_seed(scenario.seed, index)))
+        })
+    });
+    group.finish();
+}
+
+criterion_group!(benches, cell_benches);
+criterion_main!(benches);
