@@ -456,6 +456,7 @@ impl<'a> Trial<'a> {
         });
         let open = percept.part_outer_radius_m + self.scenario.gripper.open_clearance_m;
         let speed = self.scenario.robot.speed_fraction;
+        let carry = self.scenario.robot.carry_speed_fraction;
         let mut reachable = false;
         let mut last_hit = String::new();
         for offset_deg in [
@@ -481,7 +482,7 @@ impl<'a> Trial<'a> {
                 reachable = true;
                 let to_pregrasp = JointTrajectory::through(&self.model, &[self.q, q_above], speed);
                 let descend = JointTrajectory::along(&self.model, down, speed * 0.5);
-                let lift = JointTrajectory::through(&self.model, &[q_at, q_lift], speed * 0.5);
+                let lift = JointTrajectory::through(&self.model, &[q_at, q_lift], carry * 0.5);
                 let _ = up;
                 let hit = checker
                     .check_trajectory(&descend, open, None, &[PART_OBSTACLE])
@@ -544,6 +545,7 @@ impl<'a> Trial<'a> {
         let grip = percept.part_outer_radius_m;
         let open = grip + self.scenario.gripper.open_clearance_m;
         let speed = self.scenario.robot.speed_fraction;
+        let carry = self.scenario.robot.carry_speed_fraction;
         let mut reachable = false;
         let mut last_hit = String::new();
         for yaw_deg in [0.0, 90.0, 180.0, 270.0, 45.0, 135.0, 225.0, 315.0] {
@@ -558,8 +560,8 @@ impl<'a> Trial<'a> {
                 let mut up = down.clone();
                 up.reverse();
                 reachable = true;
-                let transport = JointTrajectory::through(&self.model, &[*q_start, q_above], speed);
-                let lower = JointTrajectory::along(&self.model, down, speed * 0.5);
+                let transport = JointTrajectory::through(&self.model, &[*q_start, q_above], carry);
+                let lower = JointTrajectory::along(&self.model, down, carry * 0.5);
                 let retreat = JointTrajectory::along(&self.model, up, speed * 0.5).then(
                     JointTrajectory::through(
                         &self.model,

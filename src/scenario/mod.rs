@@ -87,6 +87,8 @@ pub struct RobotSection {
     pub home_q_rad: [f64; 6],
     /// Fraction of the joint speed and acceleration limits used for free motion.
     pub speed_fraction: f64,
+    /// Fraction used while carrying a part (gentler, so the grip holds).
+    pub carry_speed_fraction: f64,
     /// Optional URDF path (relative to the scenario file); the built-in arm when absent.
     pub urdf: Option<PathBuf>,
 }
@@ -106,6 +108,7 @@ impl Default for RobotSection {
                 0.416_979,
             ],
             speed_fraction: 0.6,
+            carry_speed_fraction: 0.3,
             urdf: None,
         }
     }
@@ -281,8 +284,8 @@ impl Default for TaskSection {
     fn default() -> Self {
         Self {
             wait_timeout_s: 6.0,
-            trial_timeout_s: 30.0,
-            slip_tolerance_m: 0.01,
+            trial_timeout_s: 45.0,
+            slip_tolerance_m: 0.025,
             bottle_tolerance_m: 0.01,
         }
     }

@@ -26,37 +26,12 @@ pub const ARM_JOINTS: [&str; DOF] = [
 ];
 /// Names of the two finger joints in the URDF.
 pub const FINGER_JOINTS: [&str; 2] = ["finger_left_joint", "finger_right_joint"];
+/// Jaw travel speed, m/s per jaw.
+pub const JAW_SPEED_M_S: f64 = 0.1;
 /// Index of a revolute joint's angle in a multibody joint's coordinates.
 const REVOLUTE_COORD: usize = 3;
-/// Direction of each finger joint's axis along the gripper's x axis (left, right).
-const FINGER_SIGNS: [f64; 2] = [1.0, -1.0];
-/// Jaw travel speed, m/s per jaw (the gripper controller ramps commands at this rate).
-pub const JAW_SPEED_M_S: f64 = 0.1;
-/// Position gain of the jaw drive, N/m.
-const JAW_STIFFNESS_N_M: f64 = 4_000.0;
-/// Velocity gain of the jaw drive, N s/m.
-const JAW_DAMPING_N_S_M: f64 = 120.0;
-
-/// Puts every robot collider in one collision group that ignores itself: links that meet at
-/// joints, and the jaws riding on the gripper, never push on each other.
-fn isolate_robot_colliders(world: &mut World, bodies: impl Iterator<Item = RigidBodyHandle>) {
-    let groups = InteractionGroups::new(
-        Group::GROUP_1,
-        Group::ALL.difference(Group::GROUP_1),
-        InteractionTestMode::And,
-    );
-    let physics = &mut world.physics;
-    for body in bodies {
-        let Some(rb) = physics.bodies.get(body) else {
-            continue;
-        };
-        for handle in rb.colliders().to_vec() {
-            if let Some(collider) = physics.colliders.get_mut(handle) {
-                collider.set_collision_groups(groups);
-            }
-        }
-    }
-}
+/// Index of a prismatic joint's offset in a multibody joint's coordinates.
+const PRISMATIC_COORD: usize = 0;
 /// The flange link.
 const FLANGE_LINK: &str = "wrist3_Link";
 
@@ -83,10 +58,7 @@ impl Default for ArmGains {
 #[derive(Debug, Clone)]
 pub struct SimArm {
     joints: [MultibodyJointHandle; DOF],
-    fingers: [ImpulseJointHandle; 2],
-    finger_bodies: [RigidBodyHandle; 2],
-    jaw_carrier: RigidBodyHandle,
-    gripper_body: RigidBodyHandle,
+    fingers: [MultibodyJointHandle; 2],
     efforts: [f32; DOF],
     flange_body: RigidBodyHandle,
     link_bodies: Vec<(String, RigidBodyHandle)>,
@@ -140,18 +112,8 @@ impl SimArm {
             ..UrdfLoaderOptions::default()
         };
         let mesh_dir = path.parent().unwrap_or(Path::new("."));
-        let (mut robot, description) = UrdfRobot::from_str(text, options, mesh_dir)
+        let (robot, description) = UrdfRobot::from_str(text, options, mesh_dir)
             .map_err(|e| urdf_error(format!("{e:#}")))?;
-        // The jaws are not joints of the arm's multibody: rapier's friction between a multibody
-        // link and a free body let a firmly held part creep down the pads. They are kinematic
-        // bodies driven by the gripper's own force-controlled jaw drive (see `drive_jaws`).
-        let joint_name =
-            |j: &rapier3d_urdf::UrdfJoint| description.joints[j.urdf_joint_index].name.clone();
-        let (finger_joints, arm_joints): (Vec<_>, Vec<_>) = robot
-            .joints
-            .drain(..)
-            .partition(|j| FINGER_JOINTS.contains(&joint_name(j).as_str()));
-        robot.joints = arm_joints;
         let link_names: Vec<String> = robot
             .links
             .iter()
@@ -190,38 +152,11 @@ impl SimArm {
         for (i, name) in ARM_JOINTS.iter().enumerate() {
             (joints[i], efforts[i]) = find_joint(name)?;
         }
-        let gripper_body = handles.links[finger_joints.first().map_or(0, |j| j.link1)].body;
-        let carrier_pose = world
-            .physics
-            .bodies
-            .get(gripper_body)
-            .map_or(Pose::IDENTITY, |b| *b.position());
-        let jaw_carrier = world.physics.bodies.insert(
-            RigidBodyBuilder::kinematic_position_based()
-                .pose(carrier_pose)
-                .can_sleep(false),
-        );
-        let mut finger_bodies = [RigidBodyHandle::invalid(); 2];
-        let mut fingers = [ImpulseJointHandle::invalid(); 2];
+        let mut fingers = [MultibodyJointHandle::invalid(); 2];
         for (i, name) in FINGER_JOINTS.iter().enumerate() {
-            let Some(joint) = finger_joints.iter().find(|j| joint_name(j) == *name) else {
-                return Err(SimError::MissingJoint {
-                    joint: name.to_string(),
-                    path: path.to_path_buf(),
-                });
-            };
-            finger_bodies[i] = handles.links[joint.link2].body;
-            // The URDF joint's frames are relative to the gripper link, whose pose the carrier
-            // shares.
-            fingers[i] = world.physics.impulse_joints.insert(
-                jaw_carrier,
-                finger_bodies[i],
-                joint.joint,
-                true,
-            );
+            fingers[i] = find_joint(name)?.0;
         }
-        isolate_robot_colliders(world, handles.links.iter().map(|l| l.body));
-        let gripper_body = handles.links[finger_joints[0].link1].body;
+        couple_fingers(world, &fingers);
         let link_bodies: Vec<(String, RigidBodyHandle)> = link_names
             .into_iter()
             .zip(handles.links.iter().map(|l| l.body))
@@ -236,9 +171,6 @@ impl SimArm {
         let arm = Self {
             joints,
             fingers,
-            finger_bodies,
-            jaw_carrier,
-            gripper_body,
             efforts,
             flange_body,
             link_bodies,
@@ -271,19 +203,8 @@ impl SimArm {
 
     /// Measured finger positions: each pad's distance from the gripper's centre line.
     pub fn finger_positions_m(&self, world: &World) -> [f64; 2] {
-        let bodies = &world.physics.bodies;
-        let Some(carrier) = bodies.get(self.jaw_carrier) else {
-            return [0.0; 2];
-        };
-        let carrier = pose_from_physics(carrier.position());
-        let mut offsets = [0.0; 2];
-        for (i, (body, sign)) in self.finger_bodies.iter().zip(FINGER_SIGNS).enumerate() {
-            if let Some(finger) = bodies.get(*body) {
-                let local = carrier.inverse() * pose_from_physics(finger.position());
-                offsets[i] = sign * local.translation.x;
-            }
-        }
-        offsets
+        self.fingers
+            .map(|handle| f64::from(joint_coord(world, handle, PRISMATIC_COORD).unwrap_or(0.0)))
     }
 
     /// Commands the joint servos to a position and feed-forward velocity.
@@ -303,41 +224,22 @@ impl SimArm {
         }
     }
 
-    /// Drives the jaws towards `pad_offset_m` from the centre line, squeezing with at most
-    /// `max_force_n` each: a force-limited parallel gripper whose jaws stay centred on what
-    /// they hold, and moves the jaw carrier with the gripper for the coming step.
-    ///
-    /// Both jaws get one target, never tighter than their mean opening less the squeeze travel
-    /// `F / k`: blocked by a part, each presses with the full force when centred, and a jaw
-    /// pushed outward presses harder than its partner, which re-centres the part as a geared
-    /// pair of jaws would. Call once before every physics step.
+    /// Alias used by the trial controller: the multibody jaws need no carrier update.
     pub fn drive_gripper(&self, world: &mut World, pad_offset_m: f64, max_force_n: f64) {
-        let [left, right] = self.finger_positions_m(world);
-        let squeeze_travel_m = max_force_n / JAW_STIFFNESS_N_M;
-        let target = pad_offset_m.max(0.5 * (left + right) - squeeze_travel_m);
-        let dt = world.params().dt_s as f32;
-        let physics = &mut world.physics;
+        self.command_gripper(world, pad_offset_m, max_force_n);
+    }
+
+    /// Drives both fingers towards `pad_offset_m` from the centre line, pushing with at most
+    /// `max_force_n` each: a force-limited parallel gripper.
+    pub fn command_gripper(&self, world: &mut World, pad_offset_m: f64, max_force_n: f64) {
         for handle in &self.fingers {
-            if let Some(joint) = physics.impulse_joints.get_mut(*handle, true) {
-                let data = &mut joint.data;
-                data.set_motor_model(JointAxis::LinX, MotorModel::ForceBased);
-                data.set_motor(
-                    JointAxis::LinX,
-                    target as f32,
-                    0.0,
-                    JAW_STIFFNESS_N_M as f32,
-                    JAW_DAMPING_N_S_M as f32,
-                );
-                data.set_motor_max_force(JointAxis::LinX, max_force_n as f32);
-            }
-        }
-        // The carrier is the gripper housing: where the arm's gripper link will be after the step.
-        let next = physics
-            .bodies
-            .get(self.gripper_body)
-            .map(|b| b.predict_position_using_velocity(dt));
-        if let (Some(next), Some(carrier)) = (next, physics.bodies.get_mut(self.jaw_carrier)) {
-            carrier.set_next_kinematic_position(next);
+            with_joint_mut(world, *handle, |joint| {
+                // Force-based so that the limit is in newtons: a stiff, well-damped servo that
+                // saturates at the force limit when the jaws are blocked by a part.
+                joint.set_motor_model(JointAxis::LinX, MotorModel::ForceBased);
+                joint.set_motor(JointAxis::LinX, pad_offset_m as f32, 0.0, 4_000.0, 120.0);
+                joint.set_motor_max_force(JointAxis::LinX, max_force_n as f32);
+            });
         }
     }
 
@@ -349,6 +251,11 @@ impl SimArm {
             .iter()
             .zip(q)
             .map(|(handle, &value)| (*handle, value as f32, REVOLUTE_COORD))
+            .chain(
+                self.fingers
+                    .iter()
+                    .map(|handle| (*handle, pad_offset_m as f32, PRISMATIC_COORD)),
+            )
             .filter_map(|(handle, value, axis)| {
                 let (_, link_id) = world.physics.multibody_joints.get(handle)?;
                 Some((link_id, value, axis))
@@ -368,25 +275,8 @@ impl SimArm {
         multibody.generalized_velocity_mut().fill(0.0);
         multibody.forward_kinematics(&physics.bodies, true);
         multibody.update_rigid_bodies(&mut physics.bodies, false);
-        // Carrier on the gripper, jaws at the requested opening, at rest.
-        let gripper = physics.bodies.get(self.gripper_body).map(|b| *b.position());
-        if let Some(gripper) = gripper {
-            if let Some(carrier) = physics.bodies.get_mut(self.jaw_carrier) {
-                carrier.set_position(gripper, true);
-                carrier.set_next_kinematic_position(gripper);
-            }
-            for (body, sign) in self.finger_bodies.iter().zip(FINGER_SIGNS) {
-                if let Some(finger) = physics.bodies.get_mut(*body) {
-                    let offset =
-                        Pose::from_translation(Vector::new((sign * pad_offset_m) as f32, 0.0, 0.0));
-                    finger.set_position(gripper * offset, true);
-                    finger.set_linvel(Vector::ZERO, true);
-                    finger.set_angvel(Vector::ZERO, true);
-                }
-            }
-        }
         self.command(world, q, &[0.0; DOF]);
-        self.drive_gripper(world, pad_offset_m, 40.0);
+        self.command_gripper(world, pad_offset_m, 40.0);
     }
 
     /// Pose of the flange in the world.
@@ -397,6 +287,28 @@ impl SimArm {
             .get(self.flange_body)
             .map(|body| pose_from_physics(body.position()))
             .unwrap_or_else(Isometry3::identity)
+    }
+}
+
+/// Couples the two finger joints so they open and close together, as a parallel gripper's jaws
+/// do through their rack and pinion.
+fn couple_fingers(world: &mut World, fingers: &[MultibodyJointHandle; 2]) {
+    let joints = &mut world.physics.multibody_joints;
+    let (Some((_, left)), Some((_, right))) = (joints.get(fingers[0]), joints.get(fingers[1]))
+    else {
+        return;
+    };
+    if let Some((multibody, _)) = joints.get_mut(fingers[0]) {
+        multibody.add_dof_coupling(MultibodyDofCoupling {
+            link1: left,
+            dof1: 0,
+            axis1: PRISMATIC_COORD,
+            link2: right,
+            dof2: 0,
+            axis2: PRISMATIC_COORD,
+            coeff: 1.0,
+            offset: 0.0,
+        });
     }
 }
 
