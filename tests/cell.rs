@@ -182,3 +182,29 @@ fn bad_scenario_exits_with_code_2() {
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn grasp_holds_by_friction_and_a_weak_grip_lets_the_part_slip() {
+    use twincell::batch::{FailureReason, Outcome, Perception, TrialRunner, trial_seed};
+    use twincell::cell::CellTrialRunner;
+    let path = scenario_path("paper_50.toml");
+    let scenario = Scenario::load(&path).expect("loads");
+    let seed = trial_seed(scenario.seed, 1);
+    let mut runner =
+        CellTrialRunner::new(scenario, &path, Perception::Oracle).expect("runner builds");
+    let firm = runner.run_trial(1, seed);
+    assert_eq!(firm.outcome, Outcome::Success, "{:?}", firm.detail);
+    // The same trial with 2 N per jaw: friction cannot carry the tube's weight.
+    runner.set_grip_force_n(2.0);
+    let weak = runner.run_trial(1, seed);
+    assert_eq!(weak.outcome, Outcome::Failure);
+    assert!(
+        matches!(
+            weak.failure,
+            Some(FailureReason::Slipped | FailureReason::Dropped)
+        ),
+        "{:?} {:?}",
+        weak.failure,
+        weak.detail
+    );
+}

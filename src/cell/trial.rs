@@ -293,21 +293,6 @@ impl<'a> Trial<'a> {
         self.set_gripper(open, 40.0);
         self.execute("approach", &plan.to_pregrasp, Watch::Free)?;
         self.execute("descend", &plan.descend, Watch::Free)?;
-        if std::env::var("TC_DBG").is_ok() {
-            let p = self.cell.body_pose(self.cell.part_body).unwrap();
-            let t = self.tcp_in_world();
-            eprintln!(
-                "percept xy {:?} part now {:.4} {:.4} {:.4} tcp {:.4} {:.4} {:.4} q {:?}",
-                percept.part_xy,
-                p.translation.x,
-                p.translation.y,
-                p.translation.z,
-                t.translation.x,
-                t.translation.y,
-                t.translation.z,
-                self.cell.arm.joint_positions(&self.cell.world)
-            );
-        }
         // Grasp: close with the set force until the fingers stop.
         self.grasp(percept.part_outer_radius_m)?;
         let tcp_from_part = self.tcp_from_part()?;
@@ -652,75 +637,7 @@ impl<'a> Trial<'a> {
                 self.q = sample.q;
             }
             self.step_physics()?;
-            if std::env::var("TC_DBG2").is_ok() {
-                let p = self.cell.body_pose(self.cell.part_body).unwrap();
-                let t = self.tcp_in_world();
-                let b = self.cell.body_pose(self.cell.bottle_body.unwrap()).unwrap();
-                eprintln!(
-                    "a t={:.3} part {:.4} {:.4} {:.4} tcp {:.4} {:.4} {:.4} bottle {:.4} {:.4} {:.4} touched {}",
-                    self.cell.world.time_s(),
-                    p.translation.x,
-                    p.translation.y,
-                    p.translation.z,
-                    t.translation.x,
-                    t.translation.y,
-                    t.translation.z,
-                    b.translation.x,
-                    b.translation.y,
-                    b.translation.z,
-                    self.bottle_touched
-                );
-            }
             if let Watch::Holding { tcp_from_part } = watch {
-                if std::env::var("TC_DBG").is_ok() {
-                    let p = self.cell.body_pose(self.cell.part_body).unwrap();
-                    let t = self.tcp_in_world();
-                    let f = self.cell.arm.finger_positions_m(&self.cell.world);
-                    let contacts: String = self
-                        .cell
-                        .world
-                        .physics
-                        .bodies
-                        .get(self.cell.part_body)
-                        .unwrap()
-                        .colliders()
-                        .iter()
-                        .flat_map(|c| {
-                            self.cell
-                                .world
-                                .physics
-                                .narrow_phase
-                                .contact_pairs_with(*c)
-                                .filter(|p| p.has_any_active_contact())
-                                .map(|p| {
-                                    format!(
-                                        "{:.1}N/{}pts/mu{:.2}",
-                                        p.total_impulse_magnitude() / 0.0041667,
-                                        p.manifolds()
-                                            .iter()
-                                            .map(|m| m.data.solver_contacts.len())
-                                            .sum::<usize>(),
-                                        p.manifolds().first().map_or(0.0, |m| m.data.friction)
-                                    )
-                                })
-                                .collect::<Vec<_>>()
-                        })
-                        .collect::<Vec<_>>()
-                        .join(" ");
-                    eprintln!(
-                        "t={:.3} part z {:.4} tcp z {:.4} part xy {:.4} {:.4} tcp xy {:.4} {:.4} fingers {:.4} {:.4} contacts {}",
-                        self.cell.world.time_s(),
-                        p.translation.z,
-                        t.translation.z,
-                        p.translation.x,
-                        p.translation.y,
-                        t.translation.x,
-                        t.translation.y,
-                        f[0],
-                        f[1],
-                        contacts
-                    );
-                }
                 self.check_hold(phase, &tcp_from_part)?;
             }
         }
@@ -732,66 +649,6 @@ impl<'a> Trial<'a> {
 
     fn check_hold(&self, phase: &str, tcp_from_part: &Isometry3<f64>) -> Result<(), Failure> {
         let now = self.tcp_from_part()?;
-        if std::env::var("TC_DBG3").is_ok() {
-            let d = now.translation.vector - tcp_from_part.translation.vector;
-            let ang = now.rotation.angle_to(&tcp_from_part.rotation);
-            let physics = &self.cell.world.physics;
-            let mut info = String::new();
-            for c in physics.bodies.get(self.cell.part_body).unwrap().colliders() {
-                for pair in physics.narrow_phase.contact_pairs_with(*c) {
-                    for m in pair.manifolds() {
-                        let n: f32 =
-                            m.points.iter().map(|p| p.data.impulse).sum::<f32>() / 0.0041667;
-                        let t: f32 = m
-                            .points
-                            .iter()
-                            .map(|p| p.data.tangent_impulse.norm())
-                            .sum::<f32>()
-                            / 0.0041667;
-                        info += &format!(
-                            " [n {:.1} t {:.1} pts {} normal {:.2} {:.2} {:.2}]",
-                            n,
-                            t,
-                            m.points.len(),
-                            m.data.normal.x,
-                            m.data.normal.y,
-                            m.data.normal.z
-                        );
-                    }
-                }
-            }
-            let tcp = self.tcp_in_world();
-            let mut fingers = String::new();
-            for (name, body) in self.cell.arm.link_bodies() {
-                if name.starts_with("finger") {
-                    let p = tcp.inverse() * self.cell.body_pose(*body).unwrap();
-                    fingers += &format!(
-                        " {name} {:.4} {:.4} {:.4}",
-                        p.translation.x, p.translation.y, p.translation.z
-                    );
-                }
-            }
-            let _ = info;
-            let axis = (now.rotation * tcp_from_part.rotation.inverse()).scaled_axis();
-            let _ = fingers;
-            let part_in_tcp = now.translation.vector;
-            eprintln!(
-                "h t={:.3} {phase} d {:.4} {:.4} {:.4} rot {:.4} axis {:.4} {:.4} {:.4} part_in_tcp {:.4} {:.4} {:.4} jaws {:?} forces {:?}",
-                self.cell.world.time_s(),
-                d.x,
-                d.y,
-                d.z,
-                ang,
-                axis.x,
-                axis.y,
-                axis.z,
-                part_in_tcp.x,
-                part_in_tcp.y,
-                part_in_tcp.z,
-                self.cell.arm.finger_positions_m(&self.cell.world),
-                0
-            );
-        }
         let drift = (now.translation.vector - tcp_from_part.translation.vector).norm();
         if drift <= self.scenario.task.slip_tolerance_m {
             return Ok(());

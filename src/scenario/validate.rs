@@ -123,7 +123,12 @@ impl Scenario {
         c.positive("robot.pedestal_side_m", robot.pedestal_side_m)?;
         c.positive("robot.base_xyz_m[2]", robot.base_xyz_m[2])?;
         c.in_range("robot.speed_fraction", robot.speed_fraction, 0.01, 1.0)?;
-        c.in_range("robot.carry_speed_fraction", robot.carry_speed_fraction, 0.01, 1.0)?;
+        c.in_range(
+            "robot.carry_speed_fraction",
+            robot.carry_speed_fraction,
+            0.01,
+            1.0,
+        )?;
         let arm = ArmModel::aubo_i5();
         if let Err(e) = arm.check_limits(&robot.home_q_rad) {
             return Err(c.fail("robot.home_q_rad", e.to_string()));

@@ -44,27 +44,17 @@ impl World {
         physics.gravity = Vector::new(0.0, 0.0, -(params.gravity_m_s2 as f32));
         physics.integration_parameters.dt = params.dt_s as f32;
         physics.integration_parameters.num_solver_iterations = params.solver_iterations.max(1);
+        // One Coulomb cone per contact point: the simplified per-manifold model let a part
+        // held by 40 N per finger creep down the pads under its own weight.
+        physics.integration_parameters.friction_model = FrictionModel::Coulomb;
         // Rapier's default contacts between moving bodies (30 Hz) are tuned for piles; an 80 g
         // finger pressing a part with tens of newtons would sink centimetres into it. Stiffer
         // contacts keep a firm grasp's penetration near a millimetre. Contacts with fixed bodies
         // keep rapier's default (60 Hz), which lets a tall part stand still on the belt; stiffer
         // ones there made it rock and walk.
-        // One Coulomb cone per contact point: the simplified per-manifold model let a part
-        // held by 40 N per finger creep down the pads under its own weight.
-        physics.integration_parameters.friction_model = FrictionModel::Coulomb;
-        let env = |k: &str| std::env::var(k).ok().and_then(|v| v.parse::<f32>().ok());
-        if let Some(v) = env("TC_IT") {
-            physics.integration_parameters.num_solver_iterations = v as usize;
-        }
-        if let Some(v) = env("TC_PGS") {
-            physics.integration_parameters.num_internal_pgs_iterations = v as usize;
-        }
-        if let Some(v) = env("TC_FB") {
-            physics.integration_parameters.friction_in_bias_pass = v > 0.0;
-        }
         physics.integration_parameters.contact_softness = SpringCoefficients::new(
-            env("TC_F").unwrap_or(params.contact_frequency_hz as f32),
-            env("TC_Z").unwrap_or(params.contact_damping_ratio as f32),
+            params.contact_frequency_hz as f32,
+            params.contact_damping_ratio as f32,
         );
         Self {
             physics,
