@@ -31,6 +31,10 @@ const GRASP_TCP_ABOVE_BOTTOM_M: f64 = 0.023;
 const GRIP_BUILD_S: f64 = 0.1;
 /// Approach and retreat distance above grasp and place poses, m.
 const APPROACH_M: f64 = 0.12;
+/// How far the fingertips reach below the TCP along the tool axis, m.
+const FINGERTIP_BELOW_TCP_M: f64 = 0.015;
+/// Half the width of a finger pad across the jaw axis, m.
+const PAD_HALF_WIDTH_M: f64 = 0.015;
 /// Sample spacing of straight tool lines, m.
 const LINE_STEP_M: f64 = 0.005;
 /// The planner's name for the part while it stands on the belt.
@@ -412,10 +416,17 @@ impl<'a> Trial<'a> {
 
     /// TCP pose in the arm's base frame: pointing down, fingers along world yaw, at world xyz.
     fn tcp_in_base(&self, xyz: Vector3<f64>, yaw_rad: f64) -> Isometry3<f64> {
+        self.tilted_tcp_in_base(xyz, yaw_rad, 0.0)
+    }
+
+    /// As [`Self::tcp_in_base`], the gripper leaning by `tilt_rad` about its own finger axis
+    /// (the jaws still close horizontally; the wrist swings to one side).
+    fn tilted_tcp_in_base(&self, xyz: Vector3<f64>, yaw_rad: f64, tilt_rad: f64) -> Isometry3<f64> {
         let world = Isometry3::from_parts(
             Translation3::from(xyz),
             UnitQuaternion::from_euler_angles(0.0, 0.0, yaw_rad)
-                * UnitQuaternion::from_euler_angles(std::f64::consts::PI, 0.0, 0.0),
+                * UnitQuaternion::from_euler_angles(std::f64::consts::PI, 0.0, 0.0)
+                * UnitQuaternion::from_euler_angles(tilt_rad, 0.0, 0.0),
         );
         self.cell.arm.world_from_base().inverse() * world
     }
@@ -444,13 +455,27 @@ impl<'a> Trial<'a> {
         let carry = self.scenario.robot.carry_speed_fraction;
         let mut reachable = false;
         let mut last_hit = String::new();
-        for offset_deg in [
-            0.0, 180.0, 30.0, -30.0, 210.0, 150.0, 60.0, -60.0, 90.0, 270.0,
-        ] {
+        // Upright first, then leaning away from either side: a tall bottle next to the part can
+        // stand where an upright wrist or forearm would pass.
+        let candidates = [0.0, 25.0, -25.0, 40.0, -40.0]
+            .into_iter()
+            .flat_map(|tilt_deg| {
+                [
+                    0.0, 180.0, 30.0, -30.0, 210.0, 150.0, 60.0, -60.0, 90.0, 270.0,
+                ]
+                .into_iter()
+                .map(move |offset_deg: f64| (tilt_deg, offset_deg))
+            });
+        for (tilt_deg, offset_deg) in candidates {
             let yaw = preferred_yaw + f64::to_radians(offset_deg);
-            let above = self.tcp_in_base(Vector3::new(x, y, approach_z), yaw);
-            let at = self.tcp_in_base(Vector3::new(x, y, grasp_z), yaw);
-            let lifted = self.tcp_in_base(Vector3::new(x, y, lift_z), yaw);
+            let tilt = f64::to_radians(tilt_deg);
+            // A leaning jaw's lower corner hangs deeper: raise the TCP to keep the tips clear.
+            let corner_drop =
+                FINGERTIP_BELOW_TCP_M * (tilt.cos() - 1.0) + PAD_HALF_WIDTH_M * tilt.abs().sin();
+            let grasp_z = grasp_z + corner_drop.max(0.0);
+            let above = self.tilted_tcp_in_base(Vector3::new(x, y, approach_z), yaw, tilt);
+            let at = self.tilted_tcp_in_base(Vector3::new(x, y, grasp_z), yaw, tilt);
+            let lifted = self.tilted_tcp_in_base(Vector3::new(x, y, lift_z), yaw, tilt);
             // Every arm configuration over the part, nearest first: another wrist or elbow
             // branch can keep the links off a bottle that the nearest one would hit.
             for q_above in self.ik.solve(&above).by_distance_from(&self.q) {
