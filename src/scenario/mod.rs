@@ -108,7 +108,7 @@ impl Default for RobotSection {
                 0.416_979,
             ],
             speed_fraction: 0.6,
-            carry_speed_fraction: 0.3,
+            carry_speed_fraction: 0.2,
             urdf: None,
         }
     }
