@@ -40,7 +40,7 @@ const LINE_STEP_M: f64 = 0.005;
 /// The planner's name for the part while it stands on the belt.
 const PART_OBSTACLE: &str = "part";
 /// Clearance the planner keeps from obstacles, m.
-const PLANNING_MARGIN_M: f64 = 0.004;
+const PLANNING_MARGIN_M: f64 = 0.008;
 
 /// Runs sorting trials of a scenario in the cell.
 #[derive(Debug, Clone)]
@@ -162,6 +162,10 @@ struct Trial<'a> {
     belt_target_m_s: f64,
     bottle_rest: Option<Isometry3<f64>>,
     bottle_touched: bool,
+    /// The phase in which the robot first touched the bottle.
+    touch_phase: Option<&'static str>,
+    /// The phase running now.
+    phase: &'static str,
     finger_command_m: f64,
     finger_target_m: f64,
     grip_force_n: f64,
@@ -186,6 +190,8 @@ impl<'a> Trial<'a> {
             belt_target_m_s: 0.0,
             bottle_rest: None,
             bottle_touched: false,
+            touch_phase: None,
+            phase: "wait",
             finger_command_m: 0.045,
             finger_target_m: 0.045,
             grip_force_n: scenario.gripper.grip_force_n,
@@ -224,11 +230,13 @@ impl<'a> Trial<'a> {
         } else if touched {
             (failure, detail) = (
                 Some(FailureReason::DistractorTouched),
-                Some(format!(
-                    "bottle moved {:.1} mm (contact: {})",
-                    displacement_m * 1e3,
-                    self.bottle_touched
-                )),
+                Some(match self.touch_phase {
+                    Some(phase) => format!(
+                        "robot touched the bottle during {phase}; it moved {:.1} mm",
+                        displacement_m * 1e3
+                    ),
+                    None => format!("bottle moved {:.1} mm", displacement_m * 1e3),
+                }),
             );
         } else if placed_bin.as_deref() != Some(correct_bin.as_str()) {
             (failure, detail) = (
@@ -651,10 +659,11 @@ impl<'a> Trial<'a> {
     /// Plays a trajectory to the end plus a short settle, watching for slips, drops and the bottle.
     fn execute(
         &mut self,
-        phase: &str,
+        phase: &'static str,
         trajectory: &JointTrajectory,
         watch: Watch,
     ) -> Result<(), Failure> {
+        self.phase = phase;
         let follower = TrajectoryFollower::new(trajectory.clone(), self.cell.world.time_s());
         let end = self.cell.world.time_s() + trajectory.duration_s() + 0.15;
         while self.cell.world.time_s() < end {
@@ -760,6 +769,9 @@ impl<'a> Trial<'a> {
         }
         if !self.bottle_touched {
             self.bottle_touched = self.robot_touches_bottle();
+            if self.bottle_touched {
+                self.touch_phase = Some(self.phase);
+            }
         }
         Ok(())
     }

@@ -94,7 +94,7 @@ impl CollisionChecker {
             obstacles,
             finger_reference_m,
             margin_m,
-            resolution_rad: 0.03,
+            resolution_rad: 0.015,
         }
     }
 
