@@ -1,7 +1,10 @@
 #!/usr/bin/env bash
-# The main job: builds twincell (release) and runs the arm demo headless.
+# The main job: builds twincell (release) and runs the paper's 50-trial sorting scenario headless.
+# Extra arguments go to `twincell run` (e.g. --seed 1, --jobs 2, --min-success 0.9).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 source scripts/setup.sh
 cargo build --release --locked
-"$CARGO_TARGET_DIR/release/twincell" demo "$@"
+# Camera perception arrives with the camera and detector work; until then the cell runs on
+# ground truth, which every report labels as oracle perception.
+"$CARGO_TARGET_DIR/release/twincell" run scenarios/paper_50.toml --perception oracle --out out/paper_50 "$@"
