@@ -87,11 +87,14 @@ fn belt_carries_the_part_to_the_photo_eye_by_friction() {
         travelled > 0.5 * scenario.conveyor.speed_m_s * elapsed,
         "{travelled} m in {elapsed} s"
     );
-    // With the belt stopped, friction stops the part within a few centimetres and holds it.
-    cell.conveyor.set_speed_m_s(0.0);
+    // The drive ramps the belt down (1 m/s^2, as the cell does); friction stops the part with
+    // it and then holds it still.
+    let dt = scenario.physics.dt_s as f32;
     for _ in 0..240 {
+        cell.conveyor.ramp_towards(0.0, dt);
         cell.world.step_with_hooks(&cell.conveyor);
     }
+    assert_eq!(cell.conveyor.speed_m_s(), 0.0);
     let at_rest = cell.body_pose(cell.part_body).expect("part").translation.x;
     for _ in 0..480 {
         cell.world.step_with_hooks(&cell.conveyor);

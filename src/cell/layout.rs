@@ -156,7 +156,8 @@ impl Cell {
             dt_s: scenario.physics.dt_s,
             gravity_m_s2: 9.81,
             solver_iterations: scenario.physics.solver_iterations,
-            ..WorldParams::default()
+            contact_frequency_hz: scenario.physics.contact_frequency_hz,
+            contact_damping_ratio: scenario.physics.contact_damping_ratio,
         });
         let base = scenario.robot.base_xyz_m;
         let world_from_base = Isometry3::translation(base[0], base[1], base[2]);

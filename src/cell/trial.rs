@@ -31,6 +31,8 @@ const GRASP_TCP_ABOVE_BOTTOM_M: f64 = 0.023;
 const GRIP_BUILD_S: f64 = 0.1;
 /// Approach and retreat distance above grasp and place poses, m.
 const APPROACH_M: f64 = 0.12;
+/// A robot collider this close to the bottle counts as touching it, m.
+const TOUCH_DISTANCE_M: f64 = 0.0005;
 /// How far the fingertips reach below the TCP along the tool axis, m.
 const FINGERTIP_BELOW_TCP_M: f64 = 0.015;
 /// Half the width of a finger pad across the jaw axis, m.
@@ -794,7 +796,12 @@ impl<'a> Trial<'a> {
                     } else {
                         pair.collider1
                     };
-                    pair.has_any_active_contact()
+                    // Touching, not merely within the solver's prediction distance.
+                    let touching = pair
+                        .manifolds()
+                        .iter()
+                        .any(|m| m.points.iter().any(|p| p.dist <= TOUCH_DISTANCE_M as f32));
+                    touching
                         && physics
                             .colliders
                             .get(other)

@@ -64,13 +64,20 @@ pub struct PhysicsSection {
     pub dt_s: f64,
     /// Solver iterations per step.
     pub solver_iterations: usize,
+    /// Natural frequency of contacts between moving bodies, Hz.
+    pub contact_frequency_hz: f64,
+    /// Damping ratio of contacts between moving bodies.
+    pub contact_damping_ratio: f64,
 }
 
 impl Default for PhysicsSection {
     fn default() -> Self {
+        let world = crate::sim::WorldParams::default();
         Self {
-            dt_s: 1.0 / 240.0,
-            solver_iterations: 8,
+            dt_s: world.dt_s,
+            solver_iterations: world.solver_iterations,
+            contact_frequency_hz: world.contact_frequency_hz,
+            contact_damping_ratio: world.contact_damping_ratio,
         }
     }
 }

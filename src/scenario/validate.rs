@@ -101,6 +101,18 @@ impl Scenario {
         }
         c.positive("roundness_tolerance_mm", self.roundness_tolerance_mm)?;
         c.in_range("physics.dt_s", self.physics.dt_s, 1e-4, 0.02)?;
+        c.in_range(
+            "physics.contact_frequency_hz",
+            self.physics.contact_frequency_hz,
+            1.0,
+            10_000.0,
+        )?;
+        c.in_range(
+            "physics.contact_damping_ratio",
+            self.physics.contact_damping_ratio,
+            0.0,
+            100.0,
+        )?;
         if !(1..=64).contains(&self.physics.solver_iterations) {
             return Err(c.fail("physics.solver_iterations", "must lie in [1, 64]"));
         }

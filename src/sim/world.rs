@@ -23,8 +23,8 @@ impl Default for WorldParams {
             dt_s: 1.0 / 240.0,
             gravity_m_s2: 9.81,
             solver_iterations: 8,
-            contact_frequency_hz: 120.0,
-            contact_damping_ratio: 10.0,
+            contact_frequency_hz: 60.0,
+            contact_damping_ratio: 2.0,
         }
     }
 }
@@ -47,11 +47,12 @@ impl World {
         // One Coulomb cone per contact point: the simplified per-manifold model let a part
         // held by 40 N per finger creep down the pads under its own weight.
         physics.integration_parameters.friction_model = FrictionModel::Coulomb;
-        // Rapier's default contacts between moving bodies (30 Hz) are tuned for piles; an 80 g
-        // finger pressing a part with tens of newtons would sink centimetres into it. Stiffer
-        // contacts keep a firm grasp's penetration near a millimetre. Contacts with fixed bodies
-        // keep rapier's default (60 Hz), which lets a tall part stand still on the belt; stiffer
-        // ones there made it rock and walk.
+        // Contacts between moving bodies: rapier's default (30 Hz, damping ratio 10) lets a
+        // jaw pressing a part with 60 N sink through it. At 60 Hz and damping ratio 2 a firm
+        // grasp settles 1-2 mm into the part, about what rubber pads give; stiffer settings
+        // (120-480 Hz) made held parts creep out of the jaws in transport, softer ones (30 Hz)
+        // let them fall. Contacts with fixed bodies keep rapier's default (60 Hz, damping
+        // ratio 10), which lets a tall part stand still on the belt.
         physics.integration_parameters.contact_softness = SpringCoefficients::new(
             params.contact_frequency_hz as f32,
             params.contact_damping_ratio as f32,
