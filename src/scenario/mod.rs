@@ -192,6 +192,10 @@ pub struct PartType {
     /// Material density, kg/m^3 (steel by default).
     #[serde(default = "steel")]
     pub density_kg_m3: f64,
+    /// Grip force per jaw for this type, N (the gripper's default when absent): the cell's
+    /// recipe, chosen by the detected type.
+    #[serde(default)]
+    pub grip_force_n: Option<f64>,
 }
 
 fn steel() -> f64 {
@@ -322,6 +326,15 @@ impl Scenario {
         self.bins
             .iter()
             .find(|b| !b.reject && b.accepts.iter().any(|t| t == part_type))
+    }
+
+    /// Grip force per jaw for a part type, N.
+    pub fn grip_force_for(&self, part_type: &str) -> f64 {
+        self.part_types
+            .iter()
+            .find(|p| p.name == part_type)
+            .and_then(|p| p.grip_force_n)
+            .unwrap_or(self.gripper.grip_force_n)
     }
 
     /// The reject bin.

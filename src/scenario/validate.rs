@@ -11,7 +11,7 @@ use crate::kinematics::{AnalyticIk, ArmModel, IkSolver};
 /// The widest the gripper opens: twice the finger stroke, m.
 pub const MAX_GRIPPER_OPENING_M: f64 = 0.10;
 /// The most force a finger motor can give, N.
-pub const MAX_FINGER_FORCE_N: f64 = 60.0;
+pub const MAX_FINGER_FORCE_N: f64 = 100.0;
 
 /// A scenario file that cannot be used.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -203,6 +203,10 @@ impl Scenario {
             c.positive(&key("outer_diameter_mm"), part.outer_diameter_mm)?;
             c.positive(&key("density_kg_m3"), part.density_kg_m3)?;
             c.in_range(&key("height_mm"), part.height_mm, 40.0, 200.0)?;
+            if let Some(force) = part.grip_force_n {
+                c.in_range(&key("grip_force_n"), force, 0.0, MAX_FINGER_FORCE_N)?;
+                c.positive(&key("grip_force_n"), force)?;
+            }
             if part.bore_diameter_mm + 2.0 * self.parts.max_roundness_mm + 4.0
                 >= part.outer_diameter_mm
             {
