@@ -245,46 +245,24 @@ impl Cell {
             let [sx, sy] = bin.size_m;
             let (wall, h) = (0.006, bin.wall_height_m);
             let name = format!("bin {}", bin.name);
-            builder.fixed_box(
-                &name,
-                [cx, cy, floor_z - wall / 2.0],
-                [sx / 2.0 + wall, sy / 2.0 + wall, wall / 2.0],
-                Tag::Bin,
-                0.6,
-                true,
-            );
-            builder.fixed_box(
-                &name,
-                [cx - sx / 2.0 - wall / 2.0, cy, floor_z + h / 2.0],
-                [wall / 2.0, sy / 2.0 + wall, h / 2.0],
-                Tag::Bin,
-                0.6,
-                true,
-            );
-            builder.fixed_box(
-                &name,
-                [cx + sx / 2.0 + wall / 2.0, cy, floor_z + h / 2.0],
-                [wall / 2.0, sy / 2.0 + wall, h / 2.0],
-                Tag::Bin,
-                0.6,
-                true,
-            );
-            builder.fixed_box(
-                &name,
-                [cx, cy - sy / 2.0 - wall / 2.0, floor_z + h / 2.0],
-                [sx / 2.0, wall / 2.0, h / 2.0],
-                Tag::Bin,
-                0.6,
-                true,
-            );
-            builder.fixed_box(
-                &name,
-                [cx, cy + sy / 2.0 + wall / 2.0, floor_z + h / 2.0],
-                [sx / 2.0, wall / 2.0, h / 2.0],
-                Tag::Bin,
-                0.6,
-                true,
-            );
+            let (hx, hy, hw) = (sx / 2.0, sy / 2.0, wall / 2.0);
+            // Floor, then the walls at -x, +x, -y, +y.
+            let slabs = [
+                ([cx, cy, floor_z - hw], [hx + wall, hy + wall, hw]),
+                (
+                    [cx - hx - hw, cy, floor_z + h / 2.0],
+                    [hw, hy + wall, h / 2.0],
+                ),
+                (
+                    [cx + hx + hw, cy, floor_z + h / 2.0],
+                    [hw, hy + wall, h / 2.0],
+                ),
+                ([cx, cy - hy - hw, floor_z + h / 2.0], [hx, hw, h / 2.0]),
+                ([cx, cy + hy + hw, floor_z + h / 2.0], [hx, hw, h / 2.0]),
+            ];
+            for (center, half) in slabs {
+                builder.fixed_box(&name, center, half, Tag::Bin, 0.6, true);
+            }
             // The stand the bin sits on.
             let stand_h = floor_z - wall;
             if stand_h > 0.0 {
