@@ -123,7 +123,6 @@ pub fn run(urdf: Option<&Path>, params: &DemoParams) -> Result<DemoReport, SimEr
             let Some(sample) = follower.update(&mut world, &arm) else {
                 break;
             };
-            arm.drive_gripper(&mut world, 0.03, 40.0);
             world.step();
             let q = arm.joint_positions(&world);
             check_finite(&q, world.time_s())?;

@@ -747,7 +747,7 @@ impl<'a> Trial<'a> {
         // The jaws travel at most JAW_SPEED_M_S, like a real gripper's drive.
         let step = JAW_SPEED_M_S * dt;
         self.finger_target_m += (self.finger_command_m - self.finger_target_m).clamp(-step, step);
-        self.cell.arm.drive_gripper(
+        self.cell.arm.command_gripper(
             &mut self.cell.world,
             self.finger_target_m,
             self.grip_force_n,

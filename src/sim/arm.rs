@@ -224,11 +224,6 @@ impl SimArm {
         }
     }
 
-    /// Alias used by the trial controller: the multibody jaws need no carrier update.
-    pub fn drive_gripper(&self, world: &mut World, pad_offset_m: f64, max_force_n: f64) {
-        self.command_gripper(world, pad_offset_m, max_force_n);
-    }
-
     /// Drives both fingers towards `pad_offset_m` from the centre line, pushing with at most
     /// `max_force_n` each: a force-limited parallel gripper.
     pub fn command_gripper(&self, world: &mut World, pad_offset_m: f64, max_force_n: f64) {
