@@ -94,9 +94,7 @@ fn random_target(rng: &mut SimRng) -> Isometry3<f64> {
 /// Runs the demo with the arm loaded from `urdf` (the built-in description when `None`).
 pub fn run(urdf: Option<&Path>, params: &DemoParams) -> Result<DemoReport, SimError> {
     let model = ArmModel::aubo_i5().with_tool(gripper_tcp());
-    let Ok(ik) = AnalyticIk::new(model.clone()) else {
-        unreachable!("the AUBO i5 table has the solver's structure")
-    };
+    let ik = AnalyticIk::new(model.clone())?;
     let mut world = World::new(WorldParams::default());
     let arm = match urdf {
         Some(path) => SimArm::load(&mut world, path, Isometry3::identity())?,

@@ -50,6 +50,7 @@ pub struct CellTrialRunner {
     scenario: Scenario,
     perception: Perception,
     urdf: Option<(PathBuf, String)>,
+    ik: AnalyticIk,
 }
 
 impl CellTrialRunner {
@@ -80,10 +81,13 @@ impl CellTrialRunner {
                 "camera perception is not available yet in this build; run with --perception oracle".into(),
             ));
         }
+        let ik = AnalyticIk::new(Cell::arm_model())
+            .map_err(|e| CellError::Sim(crate::sim::SimError::Kinematics(e)))?;
         Ok(Self {
             scenario,
             perception,
             urdf,
+            ik,
         })
     }
 
@@ -106,7 +110,9 @@ impl TrialRunner for CellTrialRunner {
         let started = Instant::now();
         let mut rng = SimRng::new(seed);
         let mut record = match Cell::build(&self.scenario, self.urdf.as_ref(), &mut rng) {
-            Ok(cell) => Trial::new(&self.scenario, self.perception, cell).run(index, seed),
+            Ok(cell) => {
+                Trial::new(&self.scenario, self.perception, &self.ik, cell).run(index, seed)
+            }
             Err(e) => TrialRecord::failed(
                 index,
                 seed,
@@ -181,12 +187,9 @@ struct Trial<'a> {
 }
 
 impl<'a> Trial<'a> {
-    fn new(scenario: &'a Scenario, perception: Perception, cell: Cell) -> Self {
+    fn new(scenario: &'a Scenario, perception: Perception, ik: &AnalyticIk, cell: Cell) -> Self {
         let model = Cell::arm_model();
-        let ik = match AnalyticIk::new(model.clone()) {
-            Ok(ik) => ik,
-            Err(_) => unreachable!("the AUBO i5 table has the solver's structure"),
-        };
+        let ik = ik.clone();
         Self {
             scenario,
             perception,

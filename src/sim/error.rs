@@ -21,6 +21,9 @@ pub enum SimError {
         /// The file.
         path: PathBuf,
     },
+    /// The arm's kinematic model cannot be used.
+    #[error(transparent)]
+    Kinematics(#[from] crate::kinematics::KinematicsError),
     /// A body left the finite numbers: the simulation blew up.
     #[error("physics blow-up: {what} became non-finite at t = {time_s:.3} s")]
     BlowUp {
