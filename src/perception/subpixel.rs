@@ -205,15 +205,8 @@ mod tests {
             }],
             bottles: vec![],
             stains: vec![],
-            illumination: Illumination {
-                gradient_x: 0.0,
-                gradient_y: 0.0,
-                vignetting: 0.0,
-            },
-            noise: Noise {
-                sigma: 0.0,
-                salt_pepper: 0.0,
-            },
+            illumination: Illumination::EVEN,
+            noise: Noise::NONE,
             noise_seed: 0,
         }
         .render()

@@ -212,6 +212,15 @@ pub struct Illumination {
     pub vignetting: f64,
 }
 
+impl Illumination {
+    /// Even light: no gradient, no vignetting.
+    pub const EVEN: Self = Self {
+        gradient_x: 0.0,
+        gradient_y: 0.0,
+        vignetting: 0.0,
+    };
+}
+
 /// Sensor noise.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Noise {
@@ -219,6 +228,14 @@ pub struct Noise {
     pub sigma: f64,
     /// Share of pixels replaced by 0 or 255.
     pub salt_pepper: f64,
+}
+
+impl Noise {
+    /// A noiseless sensor.
+    pub const NONE: Self = Self {
+        sigma: 0.0,
+        salt_pepper: 0.0,
+    };
 }
 
 /// The truth of one bore, in the contract's pixel convention.
@@ -528,17 +545,7 @@ pub fn random_scene(seed: u64, width_px: u32, height_px: u32, difficulty: Diffic
     let mut bottles = Vec::new();
     let mut stains = Vec::new();
     let (illumination, noise) = match difficulty {
-        Difficulty::Clean => (
-            Illumination {
-                gradient_x: 0.0,
-                gradient_y: 0.0,
-                vignetting: 0.0,
-            },
-            Noise {
-                sigma: 0.0,
-                salt_pepper: 0.0,
-            },
-        ),
+        Difficulty::Clean => (Illumination::EVEN, Noise::NONE),
         Difficulty::Moderate => (
             Illumination {
                 gradient_x: rng.range(-0.3, 0.3),
@@ -669,15 +676,8 @@ mod tests {
             }],
             bottles: vec![],
             stains: vec![],
-            illumination: Illumination {
-                gradient_x: 0.0,
-                gradient_y: 0.0,
-                vignetting: 0.0,
-            },
-            noise: Noise {
-                sigma: 0.0,
-                salt_pepper: 0.0,
-            },
+            illumination: Illumination::EVEN,
+            noise: Noise::NONE,
             noise_seed: 0,
         };
         let image = scene.render();
