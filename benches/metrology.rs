@@ -11,7 +11,7 @@ use std::time::Duration;
 use criterion::{Criterion, criterion_group, criterion_main};
 use image::GrayImage;
 use twincell::perception::BoreDetector;
-use twincell::perception::contours::find_contours;
+use twincell::perception::contours::{find_contours, find_contours_imageproc};
 use twincell::perception::filters::median_3x3;
 use twincell::perception::synthetic::{Difficulty, random_scene};
 use twincell::perception::threshold::adaptive_mean_threshold;
@@ -81,6 +81,9 @@ fn metrology(c: &mut Criterion) {
             })
         });
         group.bench_function("contours", |b| b.iter(|| find_contours(black_box(&binary))));
+        group.bench_function("contours_imageproc", |b| {
+            b.iter(|| find_contours_imageproc(black_box(&binary)))
+        });
         group.bench_function("measure_candidates", |b| {
             b.iter(|| detector.measure_contours(black_box(&filtered), &binary, &contours))
         });
