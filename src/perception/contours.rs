@@ -73,8 +73,29 @@ pub fn find_contours(binary: &GrayImage) -> Vec<Contour> {
             *o = u8::from(p != 0);
         }
     }
-    // Border numbers, written only where a border passes (zeroed pages are cheap).
-    let mut label = vec![0u32; stride * (h + 2)];
+    LABELS.with_borrow_mut(|label| {
+        if label.len() < state.len() {
+            label.resize(state.len(), 0);
+        }
+        follow_all(&mut state, label, stride, w, h)
+    })
+}
+
+thread_local! {
+    /// Border numbers by pixel, kept between calls so a frame does not pay for zeroing 4 bytes
+    /// a pixel: a number is only read where this call's pixel state says a border passed, and
+    /// such a pixel's number was written by this call.
+    static LABELS: std::cell::RefCell<Vec<u32>> = const { std::cell::RefCell::new(Vec::new()) };
+}
+
+/// The raster scan of [`find_contours`] over the padded state image.
+fn follow_all(
+    state: &mut [u8],
+    label: &mut [u32],
+    stride: usize,
+    w: usize,
+    h: usize,
+) -> Vec<Contour> {
     let offsets: [isize; 8] = STEPS.map(|(dx, dy)| dx + dy * stride as isize);
     const ZEROS: u64 = 0;
     const ONES: u64 = 0x0101_0101_0101_0101;
@@ -121,9 +142,7 @@ pub fn find_contours(binary: &GrayImage) -> Vec<Contour> {
                 } else {
                     None
                 };
-                let points_px = trace(
-                    &mut state, &mut label, &offsets, stride, w, p, from_dir, number,
-                );
+                let points_px = trace(state, label, &offsets, stride, w, p, from_dir, number);
                 contours.push(Contour {
                     points_px,
                     kind,

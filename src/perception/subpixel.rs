@@ -33,7 +33,7 @@ impl Default for RayParams {
         Self {
             search_half_px: 3.5,
             search_step_px: 0.5,
-            step_px: 0.25,
+            step_px: 0.5,
             level_near_px: 3.0,
             level_far_px: 6.0,
             min_contrast: 20.0,
@@ -95,7 +95,17 @@ pub fn ray_levels(
     params: &RayParams,
 ) -> (f64, f64) {
     let (s, c) = angle_rad.sin_cos();
-    let dir = [c, s];
+    levels_along(image, centre, [c, s], coarse_radius_px, params)
+}
+
+/// [`ray_levels`] on the ray with unit direction `dir`.
+fn levels_along(
+    image: &GrayImage,
+    centre: [f64; 2],
+    dir: [f64; 2],
+    coarse_radius_px: f64,
+    params: &RayParams,
+) -> (f64, f64) {
     let rho = coarse_radius_px;
     // Keep the inner window inside the bore even for small bores.
     let inner_far = (rho - params.level_far_px).max(0.4 * rho);
@@ -128,12 +138,34 @@ pub fn locate_edge(
     levels: (f64, f64),
     params: &RayParams,
 ) -> Option<EdgePoint> {
+    let (s, c) = angle_rad.sin_cos();
+    edge_along(
+        image,
+        centre,
+        angle_rad,
+        [c, s],
+        coarse_radius_px,
+        levels,
+        params,
+    )
+}
+
+/// [`locate_edge`] on the ray at `angle_rad` whose unit direction is `dir`.
+fn edge_along(
+    image: &GrayImage,
+    centre: [f64; 2],
+    angle_rad: f64,
+    dir: [f64; 2],
+    coarse_radius_px: f64,
+    levels: (f64, f64),
+    params: &RayParams,
+) -> Option<EdgePoint> {
     let (inner_level, outer_level) = levels;
     if image.width() == 0 || image.height() == 0 || outer_level - inner_level < params.min_contrast
     {
         return None;
     }
-    let (s, c) = angle_rad.sin_cos();
+    let [c, s] = dir;
     let rho = coarse_radius_px;
     let at = |t: f64| sample_bilinear(image, centre[0] + t * c, centre[1] + t * s);
     let half = 0.5 * (inner_level + outer_level);
@@ -182,8 +214,17 @@ pub fn refine_ray(
     coarse_radius_px: f64,
     params: &RayParams,
 ) -> Option<EdgePoint> {
-    let levels = ray_levels(image, centre, angle_rad, coarse_radius_px, params);
-    locate_edge(image, centre, angle_rad, coarse_radius_px, levels, params)
+    let (s, c) = angle_rad.sin_cos();
+    let levels = levels_along(image, centre, [c, s], coarse_radius_px, params);
+    edge_along(
+        image,
+        centre,
+        angle_rad,
+        [c, s],
+        coarse_radius_px,
+        levels,
+        params,
+    )
 }
 
 #[cfg(test)]
