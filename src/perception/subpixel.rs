@@ -86,20 +86,9 @@ pub fn mean_along(image: &GrayImage, centre: [f64; 2], dir: [f64; 2], from: f64,
     sum / count as f64
 }
 
-/// Mean levels inside (bore side) and outside (rim side) of the coarse edge on one ray.
+/// Mean levels inside (bore side) and outside (rim side) of the coarse edge on the ray from
+/// `centre` with unit direction `dir`.
 pub fn ray_levels(
-    image: &GrayImage,
-    centre: [f64; 2],
-    angle_rad: f64,
-    coarse_radius_px: f64,
-    params: &RayParams,
-) -> (f64, f64) {
-    let (s, c) = angle_rad.sin_cos();
-    levels_along(image, centre, [c, s], coarse_radius_px, params)
-}
-
-/// [`ray_levels`] on the ray with unit direction `dir`.
-fn levels_along(
     image: &GrayImage,
     centre: [f64; 2],
     dir: [f64; 2],
@@ -122,8 +111,8 @@ fn levels_along(
     )
 }
 
-/// Locates the dark-to-bright edge on the ray from `centre` at `angle_rad` near
-/// `coarse_radius_px`, given the levels either side. `None` when the contrast is too low or the
+/// Locates the dark-to-bright edge on the ray from `centre` at `angle_rad` (unit direction
+/// `dir`) near `coarse_radius_px`, given the levels either side. `None` when the contrast is too low or the
 /// profile never crosses the half level.
 ///
 /// The half-level crossing picks the edge; its position is then the area (first-moment) estimate
@@ -131,27 +120,6 @@ fn levels_along(
 /// over a window `[a, b]` around the crossing. For an area-sampled step edge and any symmetric blur
 /// that integral is exact, where linear interpolation of the crossing is biased by up to 0.09 px.
 pub fn locate_edge(
-    image: &GrayImage,
-    centre: [f64; 2],
-    angle_rad: f64,
-    coarse_radius_px: f64,
-    levels: (f64, f64),
-    params: &RayParams,
-) -> Option<EdgePoint> {
-    let (s, c) = angle_rad.sin_cos();
-    edge_along(
-        image,
-        centre,
-        angle_rad,
-        [c, s],
-        coarse_radius_px,
-        levels,
-        params,
-    )
-}
-
-/// [`locate_edge`] on the ray at `angle_rad` whose unit direction is `dir`.
-fn edge_along(
     image: &GrayImage,
     centre: [f64; 2],
     angle_rad: f64,
@@ -215,8 +183,8 @@ pub fn refine_ray(
     params: &RayParams,
 ) -> Option<EdgePoint> {
     let (s, c) = angle_rad.sin_cos();
-    let levels = levels_along(image, centre, [c, s], coarse_radius_px, params);
-    edge_along(
+    let levels = ray_levels(image, centre, [c, s], coarse_radius_px, params);
+    locate_edge(
         image,
         centre,
         angle_rad,
