@@ -520,6 +520,13 @@ fn set_robot_friction(world: &mut World, arm: &SimArm, pad_friction: f64) {
                 if name.starts_with("finger") {
                     // Rubber pads grip with their own coefficient, whatever they touch.
                     collider.set_friction_combine_rule(CoefficientCombineRule::Max);
+                    // Contacts of a hooked collider are never recycled: rapier otherwise keeps
+                    // a pair's contacts, normal and lever arms frozen in world space while the
+                    // pair's relative pose barely changes, which is exactly a held part. As
+                    // the arm turned the gripper (up to 11 deg before a refresh) the pads'
+                    // squeeze then pushed along stale normals, twisted the part and walked it
+                    // out of the jaws. Pad contacts are rebuilt every step instead.
+                    collider.set_active_hooks(ActiveHooks::MODIFY_SOLVER_CONTACTS);
                 }
                 collider.user_data = Tag::Robot as u128;
             }
