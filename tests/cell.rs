@@ -19,7 +19,7 @@ fn paper() -> Scenario {
 
 #[test]
 fn shipped_scenarios_validate() {
-    for name in ["paper_50.toml", "smoke.toml"] {
+    for name in ["paper_50.toml", "smoke.toml", "stream.toml"] {
         let scenario = Scenario::load(&scenario_path(name)).expect(name);
         assert!(scenario.part_types.len() >= 6);
         assert!(scenario.reject_bin().is_some());
@@ -212,4 +212,89 @@ fn grasp_holds_by_friction_and_a_weak_grip_lets_the_part_slip() {
         weak.failure,
         weak.detail
     );
+}
+
+/// The stream scenario shortened to `parts` parts and `bottles` bottles, written to `dir`.
+fn short_stream(dir: &Path, parts: u32, bottles: u32) -> PathBuf {
+    std::fs::create_dir_all(dir).expect("temp dir");
+    let text = std::fs::read_to_string(scenario_path("stream.toml")).expect("read");
+    let text = text
+        .replace("parts_per_trial = 8", &format!("parts_per_trial = {parts}"))
+        .replace("bottles = 2", &format!("bottles = {bottles}"));
+    let path = dir.join("short_stream.toml");
+    std::fs::write(&path, text).expect("write");
+    path
+}
+
+#[test]
+fn a_stream_sorts_every_part_and_the_belt_stops_for_each_item() {
+    use twincell::batch::{Outcome, Perception, TrialRunner, trial_seed};
+    use twincell::cell::CellTrialRunner;
+    let dir = std::env::temp_dir().join(format!("twincell-stream-{}", std::process::id()));
+    let path = short_stream(&dir, 3, 2);
+    let scenario = Scenario::load(&path).expect("loads");
+    let runner = CellTrialRunner::new(scenario.clone(), &path, Perception::Oracle).expect("runner");
+    let record = runner.run_trial(0, trial_seed(scenario.seed, 0));
+    assert_eq!(record.outcome, Outcome::Success, "{:?}", record.detail);
+    let stream = record.stream.expect("a stream record");
+    assert_eq!(stream.parts_planned, 3);
+    assert_eq!(stream.parts_sorted, 3);
+    assert_eq!(stream.parts.len(), 3);
+    assert!(
+        stream
+            .parts
+            .iter()
+            .all(|p| p.placed_bin.as_deref() == Some(p.part.correct_bin.as_str()))
+    );
+    // One stop per part and per bottle that reached the photo-eye: the belt restarted each time.
+    assert_eq!(stream.belt_stops, 3 + stream.bottles_passed);
+    assert!(!record.distractor_touched && !record.distractor_picked);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn a_stream_is_deterministic_across_jobs_and_shards() {
+    let dir = std::env::temp_dir().join(format!("twincell-stream-det-{}", std::process::id()));
+    let path = short_stream(&dir, 2, 1);
+    let scenario = path.to_str().expect("utf-8 path");
+    let run = |name: &str, extra: &[&str]| {
+        let out = dir.join(name);
+        let out_str = out.to_str().expect("utf-8 path").to_owned();
+        let mut args = vec!["run", scenario, "--perception", "oracle", "--trials", "2"];
+        args.extend_from_slice(extra);
+        args.extend_from_slice(&["--out", &out_str, "--json"]);
+        let (code, stderr) = run_cli(&args);
+        assert!(code == 0 || code == 1, "exit {code}: {stderr}");
+        without_timing(&out.join("trials.jsonl"))
+    };
+    let one = run("jobs1", &["--jobs", "1"]);
+    let two = run("jobs2", &["--jobs", "2"]);
+    assert_eq!(one.len(), 2);
+    assert!(one.iter().all(|r| r.get("stream").is_some()));
+    assert_eq!(one, two);
+    let mut shards = run("shard0", &["--shard", "0/2", "--jobs", "1"]);
+    shards.extend(run("shard1", &["--shard", "1/2", "--jobs", "1"]));
+    shards.sort_by_key(|r| r["trial"].as_u64());
+    assert_eq!(one, shards);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn a_bad_stream_section_names_the_key() {
+    let stream = std::fs::read_to_string(scenario_path("stream.toml")).expect("read");
+    let path = Path::new("stream.toml");
+    let tight = Scenario::from_toml(&stream.replace("spacing_m = 0.3", "spacing_m = 0.05"), path)
+        .expect_err("too tight");
+    assert!(tight.to_string().contains("stream.spacing_m"), "{tight}");
+    let with_bottle =
+        Scenario::from_toml(&stream.replace("enabled = false", "enabled = true"), path)
+            .expect_err("bottle beside a stream");
+    assert!(
+        with_bottle.to_string().contains("bottle.enabled"),
+        "{with_bottle}"
+    );
+    let paper = std::fs::read_to_string(scenario_path("paper_50.toml")).expect("read");
+    let stray = Scenario::from_toml(&format!("{paper}\n[stream]\nbottles = 3\n"), path)
+        .expect_err("stream section without a stream");
+    assert!(stray.to_string().contains("stream"), "{stray}");
 }

@@ -21,10 +21,12 @@ pub use junit::{junit_xml, testcase_name, xml_escape};
 pub use merge::{MergeError, MergeSummary, merge_shards};
 pub use report::{
     AcceptConfusion, BatchReport, CycleTime, ErrorStats, Gate, Metrology, ReportMeta, Sorting,
-    StageTiming, StageTimings, Timing, VerdictCounts, Z95, exit_code, passes_gate, wilson_interval,
+    StageTiming, StageTimings, StreamSummary, Timing, VerdictCounts, Z95, exit_code, passes_gate,
+    wilson_interval,
 };
 pub use trial_record::{
-    DecisionRecord, FailureReason, Outcome, PartRecord, Perception, TrialRecord, TrialTiming,
+    DecisionRecord, FailureReason, Outcome, PartRecord, Perception, StreamPartRecord, StreamRecord,
+    TrialRecord, TrialTiming,
 };
 
 /// Runs one trial of a scenario. Implementations must be deterministic in `(index, seed)`.

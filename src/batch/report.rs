@@ -171,6 +171,23 @@ pub struct Gate {
     pub passed: bool,
 }
 
+/// Parts of stream trials, counted part by part.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct StreamSummary {
+    /// Parts the feeders were to put on the belt.
+    pub parts_planned: u32,
+    /// Parts that reached the pick station.
+    pub parts_reached: u32,
+    /// Parts sorted into their correct bins.
+    pub parts_sorted: u32,
+    /// Failure reason -> parts.
+    pub part_failures: BTreeMap<String, u32>,
+    /// Bottles let through at the photo-eye.
+    pub bottles_passed: u32,
+    /// Times a belt stopped at the photo-eye.
+    pub belt_stops: u32,
+}
+
 /// The contents of `report.json`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct BatchReport {
@@ -214,6 +231,9 @@ pub struct BatchReport {
     /// recorded trials of cycle_time_s / 60)`. Failed trials count in the denominator
     /// because they occupy the cell too; `null` when the summed cycle time is 0.
     pub parts_per_minute: Option<f64>,
+    /// Per-part figures of stream trials; absent when no trial was a stream.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stream: Option<StreamSummary>,
     /// The `--min-success` gate, if any.
     pub gate: Option<Gate>,
     /// Wall-clock figures (not deterministic).
@@ -305,10 +325,17 @@ impl BatchReport {
         let mut roundness_errors = Vec::new();
         let mut bore_errors = Vec::new();
         let mut sorting = Sorting::default();
-        for record in records {
-            let (Some(part), Some(decision)) = (&record.part, &record.decision) else {
-                continue;
-            };
+        // Every part with a decision: a single-part trial's, and each part of a stream.
+        let decided = records.iter().flat_map(|record| {
+            let single = record.part.as_ref().zip(record.decision.as_ref());
+            let streamed = record
+                .stream
+                .iter()
+                .flat_map(|s| &s.parts)
+                .filter_map(|p| p.decision.as_ref().map(|d| (&p.part, d)));
+            single.into_iter().chain(streamed)
+        });
+        for (part, decision) in decided {
             sorting.count += 1;
             if let Some(measured) = decision.measured_roundness_mm {
                 roundness_errors.push((measured - part.true_roundness_mm).abs());
@@ -334,10 +361,22 @@ impl BatchReport {
                 .or_insert(0) += 1;
         }
 
+        // Cycle time per sorted part: a successful single-part trial's, each sorted part's of
+        // a stream.
         let mut cycle_times: Vec<f64> = records
             .iter()
-            .filter(|r| r.outcome == Outcome::Success)
-            .map(|r| r.cycle_time_s)
+            .flat_map(|r| match &r.stream {
+                None => (r.outcome == Outcome::Success)
+                    .then_some(r.cycle_time_s)
+                    .into_iter()
+                    .collect::<Vec<_>>(),
+                Some(s) => s
+                    .parts
+                    .iter()
+                    .filter(|p| p.outcome == Outcome::Success)
+                    .map(|p| p.cycle_time_s)
+                    .collect(),
+            })
             .collect();
         cycle_times.sort_by(f64::total_cmp);
         let cycle_time_s = match (
@@ -353,8 +392,30 @@ impl BatchReport {
             _ => None,
         };
         let total_cycle_min = records.iter().map(|r| r.cycle_time_s).sum::<f64>() / 60.0;
+        let sorted_parts: u32 = records
+            .iter()
+            .map(|r| match &r.stream {
+                None => u32::from(r.outcome == Outcome::Success),
+                Some(s) => s.parts_sorted,
+            })
+            .sum();
         let parts_per_minute =
-            (total_cycle_min > 0.0).then(|| f64::from(successes) / total_cycle_min);
+            (total_cycle_min > 0.0).then(|| f64::from(sorted_parts) / total_cycle_min);
+        let stream = records.iter().any(|r| r.stream.is_some()).then(|| {
+            let mut summary = StreamSummary::default();
+            for s in records.iter().filter_map(|r| r.stream.as_ref()) {
+                summary.parts_planned += s.parts_planned;
+                summary.parts_reached += count(s.parts.len());
+                summary.parts_sorted += s.parts_sorted;
+                summary.bottles_passed += s.bottles_passed;
+                summary.belt_stops += s.belt_stops;
+                for part in s.parts.iter().filter(|p| p.outcome == Outcome::Failure) {
+                    let reason = part.failure.map_or("unspecified", |f| f.as_str());
+                    *summary.part_failures.entry(reason.to_owned()).or_insert(0) += 1;
+                }
+            }
+            summary
+        });
 
         Self {
             scenario: meta.scenario.clone(),
@@ -383,6 +444,7 @@ impl BatchReport {
             sorting,
             cycle_time_s,
             parts_per_minute,
+            stream,
             gate: meta.min_success.map(|min_success| Gate {
                 min_success,
                 passed: passes_gate(success_rate, Some(min_success)),
@@ -495,6 +557,21 @@ impl BatchReport {
                     "  {:<20}{:>8}{:>10}{:>10}{:>10}",
                     "successful", 0, "-", "-", "-"
                 );
+            }
+        }
+        if let Some(stream) = &self.stream {
+            let _ = writeln!(
+                out,
+                "{:<22}{:>8}  of {} reached, {} fed; {} bottles passed, {} belt stops",
+                "stream parts sorted",
+                stream.parts_sorted,
+                stream.parts_reached,
+                stream.parts_planned,
+                stream.bottles_passed,
+                stream.belt_stops
+            );
+            for (reason, n) in &stream.part_failures {
+                let _ = writeln!(out, "  {reason:<20}{n:>8}");
             }
         }
         let ppm = self

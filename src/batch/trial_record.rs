@@ -144,12 +144,54 @@ pub struct TrialRecord {
     pub distractor_picked: bool,
     /// How far the bottle moved, mm.
     pub distractor_displacement_mm: f64,
-    /// Simulated time from the part's arrival at the pick station to the arm's retreat, s.
+    /// Simulated time from the part's arrival at the pick station to the arm's retreat, s;
+    /// for a stream, from the first stop at the photo-eye to the end of the last cycle.
     pub cycle_time_s: f64,
     /// Simulated time of the whole trial, s.
     pub sim_time_s: f64,
     /// Wall-clock costs (excluded from determinism comparisons).
     pub timing: TrialTiming,
+    /// A stream trial's per-part results (absent for single-part trials, whose part is
+    /// described by `part`, `decision` and `placed_bin`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stream: Option<StreamRecord>,
+}
+
+/// What happened to one part of a stream.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct StreamPartRecord {
+    /// The part's place in the stream, from 0.
+    pub index: u32,
+    /// Success (sorted into its correct bin) or failure.
+    pub outcome: Outcome,
+    /// Why it failed, when it did.
+    pub failure: Option<FailureReason>,
+    /// Human-readable detail of the failure.
+    pub detail: Option<String>,
+    /// The truth about the part.
+    pub part: PartRecord,
+    /// What perception decided.
+    pub decision: Option<DecisionRecord>,
+    /// The bin the part came to rest in, if any.
+    pub placed_bin: Option<String>,
+    /// Simulated time from the belt's stop for this part to the arm's return home, s.
+    pub cycle_time_s: f64,
+}
+
+/// A stream trial: the parts fed, what became of each, and the belt's stops.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct StreamRecord {
+    /// Parts the feeder was to put on the belt.
+    pub parts_planned: u32,
+    /// Parts sorted into their correct bins.
+    pub parts_sorted: u32,
+    /// Bottles that reached the photo-eye and were let through.
+    pub bottles_passed: u32,
+    /// Times the belt stopped at the photo-eye.
+    pub belt_stops: u32,
+    /// Every part that reached the pick station, in order (a stream halts at its first fault,
+    /// as a cell stops on a fault, so later parts are not listed).
+    pub parts: Vec<StreamPartRecord>,
 }
 
 impl TrialRecord {
@@ -170,6 +212,7 @@ impl TrialRecord {
             cycle_time_s: 0.0,
             sim_time_s: 0.0,
             timing: TrialTiming::default(),
+            stream: None,
         }
     }
 }

@@ -44,7 +44,10 @@ impl ConveyorHooks {
 impl PhysicsHooks for ConveyorHooks {
     fn modify_solver_contacts(&self, context: &mut ContactModificationContext) {
         let speed = self.speed_m_s();
-        if speed == 0.0 {
+        // The finger pads also request this hook (so that rapier rebuilds their contacts every
+        // step, see `layout::set_robot_friction`); only the belt's contacts are changed.
+        let on_belt = context.collider1 == self.belt || context.collider2 == self.belt;
+        if speed == 0.0 || !on_belt {
             return;
         }
         // The tangent velocity is collider 1's surface velocity relative to collider 2's (checked

@@ -290,10 +290,7 @@ impl Cell {
             -scenario.parts.max_lateral_offset_m,
             scenario.parts.max_lateral_offset_m,
         );
-        let part_xy = [
-            belt.photo_eye_x_m - belt.spawn_upstream_m,
-            belt.belt_center_m[1] + lateral,
-        ];
+        let part_xy = spawn_xy(scenario, lateral);
         let part_body = insert_part(&mut world, &part, part_xy, belt_top_z);
 
         let (bottle_body, bottle_lying) = if scenario.bottle.enabled {
@@ -346,6 +343,60 @@ impl Cell {
             .map(|b| pose_from_physics(b.position()))
     }
 
+    /// Puts a newly drawn part on the belt at the spawn point (a stream's feeder).
+    pub fn spawn_part(
+        &mut self,
+        scenario: &Scenario,
+        rng: &mut SimRng,
+    ) -> (RigidBodyHandle, PartInstance) {
+        let part = PartInstance::draw(scenario, rng);
+        let lateral = rng.range(
+            -scenario.parts.max_lateral_offset_m,
+            scenario.parts.max_lateral_offset_m,
+        );
+        let xy = spawn_xy(scenario, lateral);
+        let body = insert_part(&mut self.world, &part, xy, self.belt_top_z);
+        (body, part)
+    }
+
+    /// Puts a bottle on the belt at the spawn point (a stream's feeder).
+    pub fn spawn_bottle(&mut self, scenario: &Scenario, rng: &mut SimRng) -> RigidBodyHandle {
+        let bottle = &scenario.bottle;
+        let lying = rng.uniform() < bottle.lying_fraction;
+        let footprint = if lying {
+            bottle.height_m / 2.0
+        } else {
+            bottle.radius_m
+        };
+        let room = (scenario.conveyor.width_m / 2.0 - footprint).max(0.0);
+        let lateral = rng.range(-room, room);
+        // Lying bottles run along the belt so that they pass the station within its width.
+        let yaw = if lying {
+            rng.range(-0.3, 0.3)
+        } else {
+            rng.range(0.0, std::f64::consts::TAU)
+        };
+        let xy = spawn_xy(scenario, lateral);
+        insert_bottle_at(&mut self.world, bottle, xy, lying, yaw, self.belt_top_z)
+    }
+
+    /// The bodies whose colliders break the photo-eye's beam, in handle order.
+    pub fn bodies_at_photo_eye(&self) -> Vec<RigidBodyHandle> {
+        let physics = &self.world.physics;
+        let mut bodies: Vec<RigidBodyHandle> = physics
+            .narrow_phase
+            .intersection_pairs_with(self.photo_eye)
+            .filter(|(_, _, intersecting)| *intersecting)
+            .filter_map(|(c1, c2, _)| {
+                let other = if c1 == self.photo_eye { c2 } else { c1 };
+                physics.colliders.get(other)?.parent()
+            })
+            .collect();
+        bodies.sort_by_key(|h| h.into_raw_parts());
+        bodies.dedup();
+        bodies
+    }
+
     /// Whether the photo-eye's beam is broken by any body.
     pub fn photo_eye_blocked(&self) -> bool {
         self.world
@@ -354,6 +405,15 @@ impl Cell {
             .intersection_pairs_with(self.photo_eye)
             .any(|(_, _, intersecting)| intersecting)
     }
+}
+
+/// The feeder's spawn point on the belt, `lateral` off the centre line.
+fn spawn_xy(scenario: &Scenario, lateral: f64) -> [f64; 2] {
+    let belt = &scenario.conveyor;
+    [
+        belt.photo_eye_x_m - belt.spawn_upstream_m,
+        belt.belt_center_m[1] + lateral,
+    ]
 }
 
 /// Inserts the part as a dynamic tube (solid cylinder collider with the tube's mass properties).
@@ -452,6 +512,19 @@ fn insert_bottle(
         }
     }
     let yaw = rng.range(0.0, std::f64::consts::TAU);
+    let body = insert_bottle_at(world, bottle, xy, lying, yaw, belt_top_z);
+    (body, lying)
+}
+
+/// Inserts a bottle with its base centre (or, lying, its middle) over `xy` on the belt.
+fn insert_bottle_at(
+    world: &mut World,
+    bottle: &crate::scenario::BottleSection,
+    xy: [f64; 2],
+    lying: bool,
+    yaw: f64,
+    belt_top_z: f64,
+) -> RigidBodyHandle {
     let (z, rotation) = if lying {
         (
             belt_top_z + bottle.radius_m,
@@ -498,7 +571,7 @@ fn insert_bottle(
             .colliders
             .insert_with_parent(collider, body, &mut physics.bodies);
     }
-    (body, lying)
+    body
 }
 
 /// Finger pads get the scenario's friction, the rest of the robot a moderate one.
@@ -520,6 +593,13 @@ fn set_robot_friction(world: &mut World, arm: &SimArm, pad_friction: f64) {
                 if name.starts_with("finger") {
                     // Rubber pads grip with their own coefficient, whatever they touch.
                     collider.set_friction_combine_rule(CoefficientCombineRule::Max);
+                    // Contacts of a hooked collider are never recycled: rapier otherwise keeps
+                    // a pair's contacts, normal and lever arms frozen in world space while the
+                    // pair's relative pose barely changes, which is exactly a held part. As
+                    // the arm turned the gripper (up to 11 deg before a refresh) the pads'
+                    // squeeze then pushed along stale normals, twisted the part and walked it
+                    // out of the jaws. Pad contacts are rebuilt every step instead.
+                    collider.set_active_hooks(ActiveHooks::MODIFY_SOLVER_CONTACTS);
                 }
                 collider.user_data = Tag::Robot as u128;
             }

@@ -9,14 +9,13 @@ use std::time::Instant;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use rapier3d::prelude::*;
 
-use super::{Cell, CellError, Tag};
+use super::{Cell, CellError, PartInstance, Tag};
 use crate::batch::{
-    DecisionRecord, FailureReason, Outcome, PartRecord, Perception, TrialRecord, TrialRunner,
-    TrialTiming,
+    DecisionRecord, FailureReason, Outcome, PartRecord, Perception, StreamPartRecord, StreamRecord,
+    TrialRecord, TrialRunner, TrialTiming,
 };
 use crate::control::TrajectoryFollower;
 use crate::kinematics::{AnalyticIk, ArmModel, IkSolver, JointVector};
-use crate::math::pose_from_physics;
 use crate::planning::{Carried, CollisionChecker, JointTrajectory, Obstacle, straight_line};
 use crate::rng::SimRng;
 use crate::scenario::Scenario;
@@ -41,6 +40,10 @@ const PAD_HALF_WIDTH_M: f64 = 0.015;
 const LINE_STEP_M: f64 = 0.005;
 /// The planner's name for the part while it stands on the belt.
 const PART_OBSTACLE: &str = "part";
+/// Things on the belt within this distance of the part are obstacles to its pick, m.
+const NEIGHBOURHOOD_M: f64 = 0.45;
+/// Distance between neighbouring places for parts in a bin, m.
+const BIN_SLOT_PITCH_M: f64 = 0.09;
 /// Clearance the planner keeps from obstacles, m.
 const PLANNING_MARGIN_M: f64 = 0.008;
 
@@ -111,7 +114,12 @@ impl TrialRunner for CellTrialRunner {
         let mut rng = SimRng::new(seed);
         let mut record = match Cell::build(&self.scenario, self.urdf.as_ref(), &mut rng) {
             Ok(cell) => {
-                Trial::new(&self.scenario, self.perception, &self.ik, cell).run(index, seed)
+                let trial = Trial::new(&self.scenario, self.perception, &self.ik, cell, rng);
+                if self.scenario.is_stream() {
+                    trial.run_stream(index, seed)
+                } else {
+                    trial.run(index, seed)
+                }
             }
             Err(e) => TrialRecord::failed(
                 index,
@@ -132,6 +140,10 @@ struct Failure {
     detail: String,
 }
 
+fn count_u32(n: usize) -> u32 {
+    u32::try_from(n).unwrap_or(u32::MAX)
+}
+
 fn fail<T>(reason: FailureReason, detail: impl Into<String>) -> Result<T, Failure> {
     Err(Failure {
         reason,
@@ -149,8 +161,28 @@ struct Percept {
     part_height_m: f64,
     roundness_mm: Option<f64>,
     bore_diameter_mm: Option<f64>,
-    /// The bottle as an obstacle, in the world.
-    bottle: Option<(Isometry3<f64>, SharedShape)>,
+    /// Other things on the belt near the part, as obstacles in the world: name, pose of the
+    /// shape, shape, top z. The paper's cell has one, the bottle.
+    obstacles: Vec<(&'static str, Isometry3<f64>, SharedShape, f64)>,
+}
+
+/// What the stream's feeder puts on the belt next.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum FeedItem {
+    Part,
+    Bottle,
+}
+
+/// What one pick cycle did to its part.
+struct Cycle {
+    part: PartRecord,
+    decision: Option<DecisionRecord>,
+    placed_bin: Option<String>,
+    failure: Option<Failure>,
+    touched: bool,
+    picked: bool,
+    displacement_m: f64,
+    cycle_time_s: f64,
 }
 
 /// How a motion is watched while it runs.
@@ -171,7 +203,18 @@ struct Trial<'a> {
     ik: AnalyticIk,
     timing: TrialTiming,
     belt_target_m_s: f64,
-    bottle_rest: Option<Isometry3<f64>>,
+    /// Parts on the belt or past it, and the one being handled.
+    parts: Vec<(RigidBodyHandle, PartInstance)>,
+    current: usize,
+    /// Bottles and their poses when the belt last stopped.
+    bottles: Vec<(RigidBodyHandle, Option<Isometry3<f64>>)>,
+    /// The feeder's items still to come (taken from the end) and the belt travel since the
+    /// last one went on.
+    feed: Vec<FeedItem>,
+    travel_since_feed_m: f64,
+    rng: SimRng,
+    /// Parts placed so far per bin (a stream fills its bins slot by slot).
+    bin_fill: std::collections::BTreeMap<String, usize>,
     bottle_touched: bool,
     /// The phase in which the robot first touched the bottle.
     touch_phase: Option<&'static str>,
@@ -187,9 +230,34 @@ struct Trial<'a> {
 }
 
 impl<'a> Trial<'a> {
-    fn new(scenario: &'a Scenario, perception: Perception, ik: &AnalyticIk, cell: Cell) -> Self {
+    fn new(
+        scenario: &'a Scenario,
+        perception: Perception,
+        ik: &AnalyticIk,
+        cell: Cell,
+        mut rng: SimRng,
+    ) -> Self {
         let model = Cell::arm_model();
         let ik = ik.clone();
+        let parts = vec![(cell.part_body, cell.part.clone())];
+        let bottles = cell.bottle_body.map(|b| (b, None)).into_iter().collect();
+        // A stream opens with the part already on the belt; the rest follow in a seeded order.
+        let mut feed = Vec::new();
+        if scenario.is_stream() {
+            feed.extend(std::iter::repeat_n(
+                FeedItem::Part,
+                scenario.parts_per_trial as usize - 1,
+            ));
+            feed.extend(std::iter::repeat_n(
+                FeedItem::Bottle,
+                scenario.stream.bottles as usize,
+            ));
+            for i in (1..feed.len()).rev() {
+                let j = rng.below(i as u64 + 1) as usize;
+                feed.swap(i, j);
+            }
+            feed.reverse();
+        }
         Self {
             scenario,
             perception,
@@ -198,7 +266,13 @@ impl<'a> Trial<'a> {
             ik,
             timing: TrialTiming::default(),
             belt_target_m_s: 0.0,
-            bottle_rest: None,
+            parts,
+            current: 0,
+            bottles,
+            feed,
+            travel_since_feed_m: 0.0,
+            rng,
+            bin_fill: std::collections::BTreeMap::new(),
             bottle_touched: false,
             touch_phase: None,
             phase: "wait",
@@ -211,73 +285,256 @@ impl<'a> Trial<'a> {
         }
     }
 
+    /// The paper's trial: one part (and its bottle) from the belt into its bin.
     fn run(mut self, index: u32, seed: u64) -> TrialRecord {
-        let part = &self.cell.part;
+        let cycle = match self.wait_for_part() {
+            Ok(()) => self.pick_cycle(),
+            Err(failure) => self.unreached(failure),
+        };
+        let (failure, detail) = match cycle.failure {
+            Some(f) => (Some(f.reason), Some(f.detail)),
+            None => (None, None),
+        };
+        let sim_time_s = self.cell.world.time_s();
+        TrialRecord {
+            trial: index,
+            seed,
+            outcome: if failure.is_some() {
+                Outcome::Failure
+            } else {
+                Outcome::Success
+            },
+            failure,
+            detail,
+            part: Some(cycle.part),
+            decision: cycle.decision,
+            placed_bin: cycle.placed_bin,
+            distractor_touched: cycle.touched,
+            distractor_picked: cycle.picked,
+            distractor_displacement_mm: cycle.displacement_m * 1e3,
+            cycle_time_s: cycle.cycle_time_s,
+            sim_time_s,
+            timing: self.timing,
+            stream: None,
+        }
+    }
+
+    /// A stream trial: the feeder puts parts and bottles on the belt; the belt stops at the
+    /// photo-eye for each; parts are sorted, bottles let through. The stream halts at its
+    /// first fault, as a cell does.
+    fn run_stream(mut self, index: u32, seed: u64) -> TrialRecord {
+        let planned = self.scenario.parts_per_trial;
+        let mut parts: Vec<StreamPartRecord> = Vec::new();
+        let (mut bottles_passed, mut belt_stops) = (0u32, 0u32);
+        let (mut touched, mut picked, mut displacement_m) = (false, false, 0.0f64);
+        let mut first_stop_s = None;
+        let mut halt: Option<Failure> = None;
+        while parts.len() < planned as usize {
+            if let Err(failure) = self.wait_for_part() {
+                halt = Some(failure);
+                break;
+            }
+            belt_stops += 1;
+            first_stop_s.get_or_insert(self.pick_time_s.unwrap_or(0.0));
+            let at_eye = self.cell.bodies_at_photo_eye();
+            if let Some(i) = self.parts.iter().position(|(b, _)| at_eye.contains(b)) {
+                self.current = i;
+                let cycle = self.pick_cycle();
+                touched |= cycle.touched;
+                picked |= cycle.picked;
+                displacement_m = displacement_m.max(cycle.displacement_m);
+                if let Some(bin) = &cycle.placed_bin {
+                    *self.bin_fill.entry(bin.clone()).or_insert(0) += 1;
+                }
+                let failed = cycle.failure.is_some();
+                let (failure, detail) = match cycle.failure {
+                    Some(f) => (Some(f.reason), Some(f.detail)),
+                    None => (None, None),
+                };
+                parts.push(StreamPartRecord {
+                    index: count_u32(parts.len()),
+                    outcome: if failed {
+                        Outcome::Failure
+                    } else {
+                        Outcome::Success
+                    },
+                    failure,
+                    detail,
+                    part: cycle.part,
+                    decision: cycle.decision,
+                    placed_bin: cycle.placed_bin,
+                    cycle_time_s: cycle.cycle_time_s,
+                });
+                if failed {
+                    break;
+                }
+            } else if self.bottles.iter().any(|(b, _)| at_eye.contains(b)) {
+                bottles_passed += 1;
+                if let Err(failure) = self.let_pass() {
+                    halt = Some(failure);
+                    break;
+                }
+            } else {
+                halt = Some(Failure {
+                    reason: FailureReason::NotDetected,
+                    detail: "the photo-eye is blocked by neither a part nor a bottle".into(),
+                });
+                break;
+            }
+        }
+        let parts_sorted = count_u32(
+            parts
+                .iter()
+                .filter(|p| p.outcome == Outcome::Success)
+                .count(),
+        );
+        let part_fault = parts
+            .iter()
+            .find(|p| p.outcome == Outcome::Failure)
+            .map(|p| {
+                (
+                    p.failure,
+                    format!(
+                        "part {} ({}): {}",
+                        p.index,
+                        p.part.part_type,
+                        p.detail.as_deref().unwrap_or("failed")
+                    ),
+                )
+            });
+        let (failure, detail) = match (part_fault, halt) {
+            (Some((reason, detail)), _) => (reason, Some(detail)),
+            (None, Some(f)) => (
+                Some(f.reason),
+                Some(format!("after {} parts: {}", parts.len(), f.detail)),
+            ),
+            (None, None) => (None, None),
+        };
+        let sim_time_s = self.cell.world.time_s();
+        TrialRecord {
+            trial: index,
+            seed,
+            outcome: if failure.is_some() {
+                Outcome::Failure
+            } else {
+                Outcome::Success
+            },
+            failure,
+            detail: detail.map(|d| format!("{parts_sorted}/{planned} parts sorted; {d}")),
+            part: None,
+            decision: None,
+            placed_bin: None,
+            distractor_touched: touched,
+            distractor_picked: picked,
+            distractor_displacement_mm: displacement_m * 1e3,
+            cycle_time_s: first_stop_s.map_or(0.0, |t| sim_time_s - t),
+            sim_time_s,
+            timing: self.timing,
+            stream: Some(StreamRecord {
+                parts_planned: planned,
+                parts_sorted,
+                bottles_passed,
+                belt_stops,
+                parts,
+            }),
+        }
+    }
+
+    /// The truth about the part being handled.
+    fn part_record(&self) -> PartRecord {
+        let part = &self.parts[self.current].1;
         let true_roundness_mm = part.bore.roundness_m() * 1000.0;
         let truly_acceptable = true_roundness_mm <= self.scenario.roundness_tolerance_mm;
-        let correct_bin = self.bin_for(&part.type_name, truly_acceptable);
-        let part_record = PartRecord {
+        PartRecord {
             part_type: part.type_name.clone(),
             true_roundness_mm,
             true_bore_diameter_mm: part.bore.mean_diameter_m() * 1000.0,
             truly_acceptable,
-            correct_bin: correct_bin.clone(),
-        };
+            correct_bin: self.bin_for(&part.type_name, truly_acceptable),
+        }
+    }
+
+    /// A part that never reached the pick station.
+    fn unreached(&self, failure: Failure) -> Cycle {
+        Cycle {
+            part: self.part_record(),
+            decision: None,
+            placed_bin: None,
+            failure: Some(failure),
+            touched: false,
+            picked: false,
+            displacement_m: 0.0,
+            cycle_time_s: 0.0,
+        }
+    }
+
+    /// One pick cycle on the part at the photo-eye (the belt stopped): perceive, sort, check
+    /// the bin and the bottles.
+    fn pick_cycle(&mut self) -> Cycle {
+        self.bottle_touched = false;
+        self.touch_phase = None;
+        let part = self.part_record();
+        let correct_bin = part.correct_bin.clone();
         let mut decision = None;
         let result = self.sort(&mut decision);
         let placed_bin = self.bin_holding_part();
         let displacement_m = self.bottle_displacement_m();
-        let bottle_picked = self.bottle_lifted();
+        let picked = self.bottle_lifted();
         let touched = self.bottle_touched || displacement_m > self.scenario.task.bottle_tolerance_m;
-        let mut outcome = Outcome::Success;
-        let (mut failure, mut detail) = (None, None);
-        if let Err(f) = result {
-            (failure, detail) = (Some(f.reason), Some(f.detail));
-        } else if bottle_picked {
-            (failure, detail) = (
-                Some(FailureReason::DistractorPicked),
-                Some("the bottle was lifted".into()),
-            );
+        let failure = if let Err(f) = result {
+            Some(f)
+        } else if picked {
+            Some(Failure {
+                reason: FailureReason::DistractorPicked,
+                detail: "the bottle was lifted".into(),
+            })
         } else if touched {
-            (failure, detail) = (
-                Some(FailureReason::DistractorTouched),
-                Some(match self.touch_phase {
+            Some(Failure {
+                reason: FailureReason::DistractorTouched,
+                detail: match self.touch_phase {
                     Some(phase) => format!(
                         "robot touched the bottle during {phase}; it moved {:.1} mm",
                         displacement_m * 1e3
                     ),
                     None => format!("bottle moved {:.1} mm", displacement_m * 1e3),
-                }),
-            );
+                },
+            })
         } else if placed_bin.as_deref() != Some(correct_bin.as_str()) {
-            (failure, detail) = (
-                Some(FailureReason::WrongBin),
-                Some(format!(
+            Some(Failure {
+                reason: FailureReason::WrongBin,
+                detail: format!(
                     "part in {}, belongs in {correct_bin}",
                     placed_bin.as_deref().unwrap_or("no bin")
-                )),
-            );
-        }
-        if failure.is_some() {
-            outcome = Outcome::Failure;
-        }
-        let sim_time_s = self.cell.world.time_s();
-        TrialRecord {
-            trial: index,
-            seed,
-            outcome,
-            failure,
-            detail,
-            part: Some(part_record),
+                ),
+            })
+        } else {
+            None
+        };
+        Cycle {
+            part,
             decision,
             placed_bin,
-            distractor_touched: touched,
-            distractor_picked: bottle_picked,
-            distractor_displacement_mm: displacement_m * 1e3,
-            cycle_time_s: self.pick_time_s.map_or(0.0, |t| sim_time_s - t),
-            sim_time_s,
-            timing: self.timing,
+            failure,
+            touched,
+            picked,
+            displacement_m,
+            cycle_time_s: self
+                .pick_time_s
+                .map_or(0.0, |t| self.cell.world.time_s() - t),
         }
+    }
+
+    /// Runs the belt until the bottle at the photo-eye has passed it.
+    fn let_pass(&mut self) -> Result<(), Failure> {
+        self.belt_target_m_s = self.scenario.conveyor.speed_m_s;
+        let deadline = self.cell.world.time_s() + self.scenario.task.wait_timeout_s;
+        while self.cell.photo_eye_blocked() {
+            if self.cell.world.time_s() > deadline {
+                return fail(FailureReason::Timeout, "a bottle stuck at the photo-eye");
+            }
+            self.step()?;
+        }
+        Ok(())
     }
 
     fn bin_for(&self, part_type: &str, accept: bool) -> String {
@@ -291,8 +548,6 @@ impl<'a> Trial<'a> {
 
     /// The whole task; `decision` is filled once perception has decided.
     fn sort(&mut self, decision: &mut Option<DecisionRecord>) -> Result<(), Failure> {
-        self.wait_for_part()?;
-        self.pick_time_s = Some(self.cell.world.time_s());
         let percept = self.perceive()?;
         let accept = percept
             .roundness_mm
@@ -354,7 +609,17 @@ impl<'a> Trial<'a> {
             self.step()?;
         }
         self.settle(0.25)?;
-        self.bottle_rest = self.cell.bottle_body.and_then(|b| self.cell.body_pose(b));
+        self.pick_time_s = Some(self.cell.world.time_s());
+        // Bottles still on the belt are watched through the cycle; one that has run off the
+        // belt's end is out of the robot's reach.
+        let belt = &self.scenario.conveyor;
+        let belt_end_x = belt.belt_center_m[0] + belt.length_m / 2.0;
+        for i in 0..self.bottles.len() {
+            self.bottles[i].1 = self.cell.body_pose(self.bottles[i].0).filter(|pose| {
+                pose.translation.x < belt_end_x
+                    && (pose.translation.z - self.cell.belt_top_z).abs() < 0.2
+            });
+        }
         Ok(())
     }
 
@@ -368,15 +633,22 @@ impl<'a> Trial<'a> {
         }
     }
 
-    /// Ground truth read from the world (diagnosis mode).
+    /// Ground truth read from the world (diagnosis mode): the part at the pick station, and
+    /// the bottles and other parts near it as obstacles.
     fn perceive_oracle(&self) -> Result<Percept, Failure> {
-        let Some(part_pose) = self.cell.body_pose(self.cell.part_body) else {
+        let (part_body, part) = &self.parts[self.current];
+        let Some(part_pose) = self.cell.body_pose(*part_body) else {
             return fail(FailureReason::NotDetected, "part body missing");
         };
-        let part = &self.cell.part;
-        let bottle = self.cell.bottle_body.and_then(|body| {
-            let rb = self.cell.world.physics.bodies.get(body)?;
-            let pose = pose_from_physics(rb.position());
+        let near = |pose: &Isometry3<f64>| {
+            let d = pose.translation.vector - part_pose.translation.vector;
+            d.x.hypot(d.y) < NEIGHBOURHOOD_M && (d.z).abs() < 0.1
+        };
+        let mut obstacles = Vec::new();
+        for (body, _) in &self.bottles {
+            let Some(pose) = self.cell.body_pose(*body).filter(near) else {
+                continue;
+            };
             // The bottle's bounding cylinder as the planner's obstacle.
             let bottle = &self.scenario.bottle;
             let shape =
@@ -386,8 +658,34 @@ impl<'a> Trial<'a> {
                     Translation3::new(0.0, 0.0, bottle.height_m / 2.0),
                     UnitQuaternion::from_euler_angles(std::f64::consts::FRAC_PI_2, 0.0, 0.0),
                 );
-            Some((center, shape))
-        });
+            let top = center.translation.z + bottle.height_m / 2.0;
+            let top = if self.cell.bottle_lying || (pose.rotation * Vector3::z()).z.abs() < 0.7 {
+                center.translation.z + bottle.radius_m
+            } else {
+                top
+            };
+            obstacles.push(("bottle", center, shape, top));
+        }
+        for (i, (body, other)) in self.parts.iter().enumerate() {
+            if i == self.current {
+                continue;
+            }
+            let Some(pose) = self.cell.body_pose(*body).filter(near) else {
+                continue;
+            };
+            let shape =
+                SharedShape::cylinder((other.height_m / 2.0) as f32, other.outer_radius_m as f32);
+            let center = Isometry3::from_parts(
+                pose.translation,
+                UnitQuaternion::from_euler_angles(std::f64::consts::FRAC_PI_2, 0.0, 0.0),
+            );
+            obstacles.push((
+                "other part",
+                center,
+                shape,
+                pose.translation.z + other.height_m / 2.0,
+            ));
+        }
         Ok(Percept {
             part_type: part.type_name.clone(),
             part_xy: [part_pose.translation.x, part_pose.translation.y],
@@ -395,7 +693,7 @@ impl<'a> Trial<'a> {
             part_height_m: part.height_m,
             roundness_mm: Some(part.bore.roundness_m() * 1000.0),
             bore_diameter_mm: Some(part.bore.mean_diameter_m() * 1000.0),
-            bottle,
+            obstacles,
         })
     }
 
@@ -424,9 +722,9 @@ impl<'a> Trial<'a> {
                 percept.part_outer_radius_m as f32,
             ),
         });
-        if let Some((pose, shape)) = &percept.bottle {
+        for (name, pose, shape, _) in &percept.obstacles {
             checker.add_obstacle(Obstacle {
-                name: "bottle".into(),
+                name: (*name).into(),
                 base_from_shape: self.cell.arm.world_from_base().inverse() * pose,
                 shape: shape.clone(),
             });
@@ -459,15 +757,21 @@ impl<'a> Trial<'a> {
         let belt_top = self.cell.belt_top_z;
         let [x, y] = percept.part_xy;
         let grasp_z = belt_top + GRASP_TCP_ABOVE_BOTTOM_M;
-        let bottle_top = percept.bottle.as_ref().map_or(belt_top, |(pose, _)| {
-            pose.translation.z + self.scenario.bottle.height_m / 2.0
-        });
+        let bottle_top = percept
+            .obstacles
+            .iter()
+            .map(|(_, _, _, top)| *top)
+            .fold(belt_top, f64::max);
         // Lift so the part's bottom clears the bottle and the rails.
         let lift_z = grasp_z + (bottle_top - belt_top + 0.04).max(APPROACH_M);
         // Come down from above the bottle: the fingertips hang 15 mm below the TCP.
         let approach_z = (grasp_z + APPROACH_M).max(bottle_top + 0.015 + 0.03);
         // Fingers close across the line to the bottle, so neither finger passes near it.
-        let preferred_yaw = percept.bottle.as_ref().map_or(0.0, |(pose, _)| {
+        let nearest = percept.obstacles.iter().min_by(|a, b| {
+            let d = |o: &Isometry3<f64>| (o.translation.x - x).hypot(o.translation.y - y);
+            d(&a.1).total_cmp(&d(&b.1))
+        });
+        let preferred_yaw = nearest.map_or(0.0, |(_, pose, _, _)| {
             (pose.translation.y - y).atan2(pose.translation.x - x) + std::f64::consts::FRAC_PI_2
         });
         let open = percept.part_outer_radius_m + self.scenario.gripper.open_clearance_m;
@@ -555,7 +859,7 @@ impl<'a> Trial<'a> {
         let Some(bin) = self.cell.bins.iter().find(|b| b.name == bin_name) else {
             return fail(FailureReason::WrongBin, format!("no bin named {bin_name}"));
         };
-        let floor = bin.floor_center;
+        let floor = bin.floor_center + self.bin_slot(bin);
         let place_z = floor.z + 0.012 + GRASP_TCP_ABOVE_BOTTOM_M;
         let above_z = floor.z + bin.wall_height + 0.04 + GRASP_TCP_ABOVE_BOTTOM_M;
         let carried = Carried {
@@ -632,6 +936,32 @@ impl<'a> Trial<'a> {
         }
     }
 
+    /// Where in a bin the next part goes, from the floor's centre: the centre for the paper's
+    /// single part; in a stream, the next free cell of a grid at BIN_SLOT_PITCH_M (centre
+    /// first), so parts stand side by side rather than on top of each other.
+    fn bin_slot(&self, bin: &super::BinBody) -> Vector3<f64> {
+        let placed = self.bin_fill.get(&bin.name).copied().unwrap_or(0);
+        if placed == 0 {
+            return Vector3::zeros();
+        }
+        let per_side = |size: f64| {
+            ((size - BIN_SLOT_PITCH_M) / BIN_SLOT_PITCH_M)
+                .floor()
+                .max(0.0) as usize
+                + 1
+        };
+        let (nx, ny) = (per_side(bin.size[0]), per_side(bin.size[1]));
+        let mut slots: Vec<Vector3<f64>> = (0..nx * ny)
+            .map(|k| {
+                let offset =
+                    |i: usize, n: usize| (i as f64 - (n as f64 - 1.0) / 2.0) * BIN_SLOT_PITCH_M;
+                Vector3::new(offset(k % nx, nx), offset(k / nx, ny), 0.0)
+            })
+            .collect();
+        slots.sort_by(|a, b| a.norm().total_cmp(&b.norm()));
+        slots[placed % slots.len()]
+    }
+
     fn set_gripper(&mut self, offset_m: f64, force_n: f64) {
         self.finger_command_m = offset_m;
         self.grip_force_n = force_n;
@@ -662,7 +992,7 @@ impl<'a> Trial<'a> {
     }
 
     fn tcp_from_part(&self) -> Result<Isometry3<f64>, Failure> {
-        let Some(part) = self.cell.body_pose(self.cell.part_body) else {
+        let Some(part) = self.cell.body_pose(self.parts[self.current].0) else {
             return fail(FailureReason::PhysicsBlowUp, "part body missing");
         };
         Ok(self.tcp_in_world().inverse() * part)
@@ -747,6 +1077,7 @@ impl<'a> Trial<'a> {
         self.cell
             .conveyor
             .ramp_towards(self.belt_target_m_s as f32, (BELT_ACCEL_M_S2 * dt) as f32);
+        self.feed(f64::from(self.cell.conveyor.speed_m_s()) * dt);
         // The jaws travel at most JAW_SPEED_M_S, like a real gripper's drive.
         let step = JAW_SPEED_M_S * dt;
         self.finger_target_m += (self.finger_command_m - self.finger_target_m).clamp(-step, step);
@@ -765,10 +1096,8 @@ impl<'a> Trial<'a> {
                 format!("trial ran past {:.0} s", self.scenario.task.trial_timeout_s),
             );
         }
-        for body in [Some(self.cell.part_body), self.cell.bottle_body]
-            .into_iter()
-            .flatten()
-        {
+        let bodies = self.parts.iter().map(|p| p.0);
+        for body in bodies.chain(self.bottles.iter().map(|b| b.0)) {
             let finite = self
                 .cell
                 .world
@@ -793,9 +1122,12 @@ impl<'a> Trial<'a> {
     }
 
     fn robot_touches_bottle(&self) -> bool {
-        let Some(bottle) = self.cell.bottle_body else {
-            return false;
-        };
+        self.bottles
+            .iter()
+            .any(|(bottle, _)| self.robot_touches(*bottle))
+    }
+
+    fn robot_touches(&self, bottle: RigidBodyHandle) -> bool {
         let physics = &self.cell.world.physics;
         let Some(rb) = physics.bodies.get(bottle) else {
             return false;
@@ -825,7 +1157,7 @@ impl<'a> Trial<'a> {
     }
 
     fn bin_holding_part(&self) -> Option<String> {
-        let pose = self.cell.body_pose(self.cell.part_body)?;
+        let pose = self.cell.body_pose(self.parts[self.current].0)?;
         let center = pose.translation.vector;
         self.cell
             .bins
@@ -834,22 +1166,49 @@ impl<'a> Trial<'a> {
             .map(|bin| bin.name.clone())
     }
 
+    /// The largest move of a bottle since the belt last stopped, m.
     fn bottle_displacement_m(&self) -> f64 {
-        let (Some(body), Some(rest)) = (self.cell.bottle_body, self.bottle_rest) else {
-            return 0.0;
-        };
-        self.cell.body_pose(body).map_or(0.0, |now| {
-            (now.translation.vector - rest.translation.vector).norm()
+        self.bottles
+            .iter()
+            .filter_map(|(body, rest)| {
+                let (now, rest) = (self.cell.body_pose(*body)?, (*rest)?);
+                Some((now.translation.vector - rest.translation.vector).norm())
+            })
+            .fold(0.0, f64::max)
+    }
+
+    /// Whether a bottle has been lifted since the belt last stopped.
+    fn bottle_lifted(&self) -> bool {
+        self.bottles.iter().any(|(body, rest)| {
+            let (Some(now), Some(rest)) = (self.cell.body_pose(*body), rest) else {
+                return false;
+            };
+            now.translation.z - rest.translation.z > 0.02
         })
     }
 
-    fn bottle_lifted(&self) -> bool {
-        let (Some(body), Some(rest)) = (self.cell.bottle_body, self.bottle_rest) else {
-            return false;
-        };
-        self.cell
-            .body_pose(body)
-            .is_some_and(|now| now.translation.z - rest.translation.z > 0.02)
+    /// The stream's feeder: a new item goes on at the spawn point each time the belt has
+    /// carried the previous one `stream.spacing_m`.
+    fn feed(&mut self, belt_travel_m: f64) {
+        if self.feed.is_empty() {
+            return;
+        }
+        self.travel_since_feed_m += belt_travel_m;
+        if self.travel_since_feed_m < self.scenario.stream.spacing_m {
+            return;
+        }
+        self.travel_since_feed_m -= self.scenario.stream.spacing_m;
+        match self.feed.pop() {
+            Some(FeedItem::Part) => {
+                let part = self.cell.spawn_part(self.scenario, &mut self.rng);
+                self.parts.push(part);
+            }
+            Some(FeedItem::Bottle) => {
+                let body = self.cell.spawn_bottle(self.scenario, &mut self.rng);
+                self.bottles.push((body, None));
+            }
+            None => {}
+        }
     }
 }
 

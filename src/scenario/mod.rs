@@ -20,7 +20,8 @@ pub struct Scenario {
     pub seed: u64,
     /// Number of trials.
     pub trials: u32,
-    /// Parts on the belt per trial (1 for the paper's experiment).
+    /// Parts per trial: 1 for the paper's experiment; more makes each trial one run of a
+    /// continuous stream of that many parts (see [`StreamSection`]).
     #[serde(default = "one")]
     pub parts_per_trial: u32,
     /// Roundness tolerance: parts whose bore is out of round by more go to the reject bin, mm.
@@ -50,6 +51,9 @@ pub struct Scenario {
     /// Time-outs and tolerances of the task controller.
     #[serde(default)]
     pub task: TaskSection,
+    /// The feeder of a stream trial (`parts_per_trial` > 1).
+    #[serde(default)]
+    pub stream: StreamSection,
 }
 
 fn one() -> u32 {
@@ -302,7 +306,34 @@ impl Default for TaskSection {
     }
 }
 
+/// The feeder of a stream trial: parts and bottles put on the belt one after another, a fixed
+/// belt distance apart, in a seeded random order.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct StreamSection {
+    /// Belt travel between two items put on the belt, m: the feeder places the next item at
+    /// the spawn point (`conveyor.spawn_upstream_m` before the photo-eye) once the belt has
+    /// carried the previous one this far.
+    pub spacing_m: f64,
+    /// Bottles mixed into the stream (each passes the pick station untouched).
+    pub bottles: u32,
+}
+
+impl Default for StreamSection {
+    fn default() -> Self {
+        Self {
+            spacing_m: 0.25,
+            bottles: 0,
+        }
+    }
+}
+
 impl Scenario {
+    /// Whether a trial is a stream of several parts rather than the paper's single part.
+    pub fn is_stream(&self) -> bool {
+        self.parts_per_trial > 1
+    }
+
     /// Reads and validates a scenario file.
     pub fn load(path: &Path) -> Result<Self, ScenarioError> {
         let text = std::fs::read_to_string(path).map_err(|e| ScenarioError {

@@ -96,8 +96,8 @@ impl Scenario {
         if self.trials == 0 {
             return Err(c.fail("trials", "must be at least 1"));
         }
-        if self.parts_per_trial != 1 {
-            return Err(c.fail("parts_per_trial", "only 1 part per trial is supported"));
+        if !(1..=1000).contains(&self.parts_per_trial) {
+            return Err(c.fail("parts_per_trial", "must lie in [1, 1000]"));
         }
         c.positive("roundness_tolerance_mm", self.roundness_tolerance_mm)?;
         c.in_range("physics.dt_s", self.physics.dt_s, 1e-4, 0.02)?;
@@ -121,11 +121,46 @@ impl Scenario {
         self.validate_parts(&c)?;
         self.validate_bottle(&c)?;
         self.validate_bins(&c)?;
+        self.validate_stream(&c)?;
         let task = &self.task;
         c.positive("task.wait_timeout_s", task.wait_timeout_s)?;
         c.positive("task.trial_timeout_s", task.trial_timeout_s)?;
         c.positive("task.slip_tolerance_m", task.slip_tolerance_m)?;
         c.positive("task.bottle_tolerance_m", task.bottle_tolerance_m)?;
+        Ok(())
+    }
+
+    fn validate_stream(&self, c: &Checker) -> Result<(), ScenarioError> {
+        let stream = &self.stream;
+        if !self.is_stream() {
+            if stream != &super::StreamSection::default() {
+                return Err(c.fail("stream", "only used when parts_per_trial is more than 1"));
+            }
+            return Ok(());
+        }
+        // Two items must fit side by side: the widest part or the bottle (lying, its length),
+        // plus room for the open fingers between them.
+        let widest_part_m = self
+            .part_types
+            .iter()
+            .map(|p| p.outer_diameter_mm / 1000.0)
+            .fold(0.0, f64::max);
+        let bottle_m = if self.stream.bottles > 0 && self.bottle.lying_fraction > 0.0 {
+            self.bottle.height_m
+        } else {
+            2.0 * self.bottle.radius_m
+        };
+        let least = widest_part_m.max(bottle_m) + 0.08;
+        c.in_range("stream.spacing_m", stream.spacing_m, least, 10.0)?;
+        if stream.bottles > 1000 {
+            return Err(c.fail("stream.bottles", "must lie in [0, 1000]"));
+        }
+        if self.bottle.enabled {
+            return Err(c.fail(
+                "bottle.enabled",
+                "a stream mixes its bottles in through stream.bottles; set bottle.enabled = false",
+            ));
+        }
         Ok(())
     }
 
