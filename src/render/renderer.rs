@@ -9,7 +9,7 @@ use nalgebra::{Isometry3, Matrix4, Point3, Vector3};
 use wgpu::util::DeviceExt;
 
 use super::error::RenderError;
-use super::scene::Scene;
+use super::scene::{ObjectKind, Scene, SceneObject};
 use crate::perception::calibration::CameraCalibration;
 
 /// Nearest depth drawn, m.
@@ -116,6 +116,8 @@ struct ObjectUniform {
 pub struct GpuScene {
     vertices: wgpu::Buffer,
     ranges: Vec<std::ops::Range<u32>>,
+    /// Object indices, nearest kinds first, so early depth tests skip hidden fragments.
+    draw_order: Vec<usize>,
     poses: Vec<Isometry3<f64>>,
 }
 
@@ -358,6 +360,16 @@ impl Renderer {
             }));
             ranges.push(start..vertices.len() as u32);
         }
+        // Front to back for a camera above the belt: parts and the bottle, the robot, the belt,
+        // then the rest (frame, bins, floor). Software rasterisers shade far less this way.
+        let rank = |object: &SceneObject| match object.kind {
+            ObjectKind::Part(_) | ObjectKind::Bottle => 0,
+            ObjectKind::Scenery if object.name == "belt" => 2,
+            ObjectKind::Scenery if object.name == "scenery" => 3,
+            ObjectKind::Scenery => 1,
+        };
+        let mut draw_order: Vec<usize> = (0..scene.objects.len()).collect();
+        draw_order.sort_by_key(|&i| rank(&scene.objects[i]));
         if vertices.is_empty() {
             vertices.push(GpuVertex::zeroed());
         }
@@ -371,6 +383,7 @@ impl Renderer {
         GpuScene {
             vertices: buffer,
             ranges,
+            draw_order,
             poses: scene.objects.iter().map(|o| o.world_from_object).collect(),
         }
     }
@@ -396,6 +409,15 @@ impl Renderer {
         let rgba = self.draw_and_read(scene, targets, view, resolve, &self.shaded)?;
         let mut image = RgbImage::new(exposure.width_px, exposure.height_px);
         let row = targets.padded_row as usize;
+        if s == 1 {
+            let width = exposure.width_px as usize;
+            for (out_row, in_row) in image.chunks_exact_mut(width * 3).zip(rgba.chunks(row)) {
+                for (out, px) in out_row.chunks_exact_mut(3).zip(in_row.chunks_exact(4)) {
+                    out.copy_from_slice(&px[..3]);
+                }
+            }
+            return Ok(image);
+        }
         let norm = 1.0 / f64::from(s * s);
         for (x, y, pixel) in image.enumerate_pixels_mut() {
             let mut sum = [0u32; 3];
@@ -647,7 +669,8 @@ impl Renderer {
             pass.set_pipeline(pipeline);
             pass.set_bind_group(0, &self.globals_group, &[]);
             pass.set_vertex_buffer(0, scene.vertices.slice(..));
-            for (i, range) in scene.ranges.iter().enumerate() {
+            for &i in &scene.draw_order {
+                let range = &scene.ranges[i];
                 if range.is_empty() {
                     continue;
                 }
