@@ -19,6 +19,8 @@ use crate::scenario::{Scenario, SensorSection};
 
 /// Salt that keeps shot streams apart from trial streams of the same seed.
 const SHOT_SALT: u64 = 0x43_414D_4552_4131;
+/// Objects whose box in the image is narrower than this (a sliver at the border) get no label.
+pub const MIN_LABEL_SIDE_PX: u32 = 4;
 /// Blobs per oil stain (an irregular patch of overlapping lobes).
 const STAIN_LOBES: u64 = 3;
 
@@ -202,7 +204,8 @@ impl Shot {
         Ok(image)
     }
 
-    /// Ground truth of the labelled objects (parts and the bottle) visible in the image.
+    /// Ground truth of the labelled objects (parts and the bottle) in the image; an object cut
+    /// to a sliver under [`MIN_LABEL_SIDE_PX`] by the image border is left out.
     pub fn truth(&self, scenario: &Scenario) -> Vec<ObjectTruth> {
         let camera = &self.exposure.camera;
         let (w, h) = (self.exposure.width_px, self.exposure.height_px);
@@ -341,35 +344,88 @@ fn draw_exposure(
     }
 }
 
-/// Inclusive pixel box of an object's projected mesh, clipped to the image.
+/// Inclusive pixel box of an object's projected mesh clipped to the image: each projected
+/// triangle is clipped to the image rectangle, so a box of an object cut by the image border fits
+/// the part that is in the image.
 fn silhouette_box(
     camera: &CameraCalibration,
     object: &SceneObject,
     width_px: u32,
     height_px: u32,
 ) -> Option<[u32; 4]> {
+    // The image spans [-0.5, size - 0.5] in pixel-centre coordinates.
+    let bounds = [
+        -0.5,
+        -0.5,
+        f64::from(width_px) - 0.5,
+        f64::from(height_px) - 0.5,
+    ];
     let mut low = [f64::INFINITY; 2];
     let mut high = [f64::NEG_INFINITY; 2];
-    for point in object.world_points() {
-        let Some(p) = camera.project(&point) else {
+    let points: Vec<Option<[f64; 2]>> = object.world_points().map(|p| camera.project(&p)).collect();
+    for triangle in points.chunks_exact(3) {
+        let (Some(a), Some(b), Some(c)) = (triangle[0], triangle[1], triangle[2]) else {
             continue;
         };
-        for k in 0..2 {
-            low[k] = low[k].min(p[k]);
-            high[k] = high[k].max(p[k]);
+        for p in clip_to_rect(vec![a, b, c], bounds) {
+            for k in 0..2 {
+                low[k] = low[k].min(p[k]);
+                high[k] = high[k].max(p[k]);
+            }
         }
     }
-    if !low[0].is_finite() {
+    if !low[0].is_finite() || high[0] - low[0] <= 0.0 || high[1] - low[1] <= 0.0 {
         return None;
     }
-    // Pixel i spans [i - 0.5, i + 0.5]: every pixel the hull touches.
-    let first = |v: f64| (v + 0.5).floor();
-    let last = |v: f64| (v + 0.5).ceil() - 1.0;
-    let x0 = first(low[0]).max(0.0);
-    let y0 = first(low[1]).max(0.0);
-    let x1 = last(high[0]).min(f64::from(width_px) - 1.0);
-    let y1 = last(high[1]).min(f64::from(height_px) - 1.0);
-    (x0 <= x1 && y0 <= y1).then(|| [x0 as u32, y0 as u32, x1 as u32, y1 as u32])
+    // Pixel i spans [i - 0.5, i + 0.5]: every pixel the clipped silhouette touches.
+    let first = |v: f64| (v + 0.5).floor().max(0.0);
+    let last = |v: f64, size: u32| ((v + 0.5).ceil() - 1.0).min(f64::from(size) - 1.0);
+    let (x0, y0) = (first(low[0]), first(low[1]));
+    let (x1, y1) = (last(high[0], width_px), last(high[1], height_px));
+    let min_side = f64::from(MIN_LABEL_SIDE_PX) - 1.0;
+    (x1 - x0 >= min_side && y1 - y0 >= min_side)
+        .then(|| [x0 as u32, y0 as u32, x1 as u32, y1 as u32])
+}
+
+/// Clips a convex polygon to the rectangle `[x0, y0, x1, y1]` (Sutherland-Hodgman).
+fn clip_to_rect(mut polygon: Vec<[f64; 2]>, rect: [f64; 4]) -> Vec<[f64; 2]> {
+    // Each edge as (axis, limit, keep the side below the limit).
+    let edges = [
+        (0, rect[0], false),
+        (0, rect[2], true),
+        (1, rect[1], false),
+        (1, rect[3], true),
+    ];
+    for (axis, limit, below) in edges {
+        let inside = |p: &[f64; 2]| {
+            if below {
+                p[axis] <= limit
+            } else {
+                p[axis] >= limit
+            }
+        };
+        let mut out = Vec::with_capacity(polygon.len() + 2);
+        for i in 0..polygon.len() {
+            let (a, b) = (polygon[i], polygon[(i + 1) % polygon.len()]);
+            match (inside(&a), inside(&b)) {
+                (true, true) => out.push(b),
+                (true, false) | (false, true) => {
+                    let t = (limit - a[axis]) / (b[axis] - a[axis]);
+                    let cut = [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])];
+                    out.push(cut);
+                    if inside(&b) {
+                        out.push(b);
+                    }
+                }
+                (false, false) => {}
+            }
+        }
+        polygon = out;
+        if polygon.is_empty() {
+            break;
+        }
+    }
+    polygon
 }
 
 /// The true bore of a part as `camera` sees it.
