@@ -169,6 +169,8 @@ impl Mesh {
                 [up; 4],
                 Material::END_FACE,
             );
+            // The underside stands on the belt at the belt's own depth; dark, so where the two
+            // fight for the depth test (seen down the bore) it looks like the belt.
             mesh.quad(
                 [
                     lift(a, bottom),
@@ -177,7 +179,7 @@ impl Mesh {
                     outer(t0, bottom),
                 ],
                 [-up; 4],
-                Material::PART_WALL,
+                Material::BORE,
             );
             let radial = |t: f64| Vector3::new(t.cos(), t.sin(), 0.0);
             mesh.quad(
