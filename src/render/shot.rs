@@ -384,7 +384,7 @@ fn silhouette_box(
     let (x1, y1) = (last(high[0], width_px), last(high[1], height_px));
     let min_side = f64::from(MIN_LABEL_SIDE_PX) - 1.0;
     (x1 - x0 >= min_side && y1 - y0 >= min_side)
-        .then(|| [x0 as u32, y0 as u32, x1 as u32, y1 as u32])
+        .then_some([x0 as u32, y0 as u32, x1 as u32, y1 as u32])
 }
 
 /// Clips a convex polygon to the rectangle `[x0, y0, x1, y1]` (Sutherland-Hodgman).
