@@ -460,3 +460,38 @@ fn rendered_bores_measure_to_truth_within_hundredths_of_a_millimetre() {
         }
     }
 }
+
+/// The arm at its home pose stays out of the camera's view of the pick station.
+#[test]
+fn the_arm_at_home_does_not_occlude_the_pick_station() {
+    let scenario = smoke();
+    let Ok(rig) = CameraRig::from_scenario(&scenario) else {
+        panic!("camera");
+    };
+    let rig = rig.with_resolution(320, 240);
+    let mut renderer = renderer(RendererOptions::default());
+    let s = shot(&scenario, &rig, &SensorSection::ideal(), 0);
+    let robot: Vec<u32> = s
+        .scene
+        .objects
+        .iter()
+        .enumerate()
+        .filter(|(_, o)| o.name.ends_with("_Link"))
+        .map(|(i, _)| i as u32 + 1)
+        .collect();
+    assert!(
+        robot.len() >= 6,
+        "robot links in the scene: {}",
+        robot.len()
+    );
+    let gpu = renderer.upload(&s.scene);
+    let ids = match renderer.render_ids(&gpu, &s.exposure) {
+        Ok(ids) => ids,
+        Err(e) => panic!("{e}"),
+    };
+    let robot_pixels = ids.pixels().filter(|p| robot.contains(&p.0[0])).count();
+    assert_eq!(
+        robot_pixels, 0,
+        "the arm covers {robot_pixels} pixels of the view"
+    );
+}
