@@ -19,7 +19,8 @@ mkdir -p "$CARGO_TARGET_DIR"
 
 # The camera renders headless with wgpu: on a GPU when there is one, else on Mesa's software
 # adapter (llvmpipe through EGL/GL). Make sure the EGL loader and Mesa's drivers are there.
-if ! ldconfig -p 2>/dev/null | grep -q 'libEGL_mesa.so.0'; then
+shared_libs=$(ldconfig -p 2>/dev/null || true)
+if ! grep -q 'libEGL_mesa.so.0' <<<"$shared_libs"; then
     echo "twincell: Mesa EGL (llvmpipe) not found; installing libegl1 libegl-mesa0 libgl1-mesa-dri" >&2
     if command -v apt-get >/dev/null 2>&1 && { [ "$(id -u)" = 0 ] || command -v sudo >/dev/null 2>&1; }; then
         sudo_cmd=""
