@@ -28,6 +28,10 @@ enum Command {
     Measure(cli::measure::MeasureArgs),
     /// Merge `twincell run --shard` outputs into one batch's trials, report and JUnit files.
     Merge(cli::merge::MergeArgs),
+    /// Render the pick station with the cell's camera: PNG plus JSON ground truth.
+    Render(cli::render::RenderArgs),
+    /// Write a synthetic Ultralytics/YOLO dataset of pick-station images.
+    Dataset(cli::render::DatasetArgs),
 }
 
 fn main() -> ExitCode {
@@ -46,6 +50,8 @@ fn main() -> ExitCode {
         Command::Run(args) => cli::run::run(&args),
         Command::Measure(args) => cli::measure::run(&args),
         Command::Merge(args) => cli::merge::run(&args),
+        Command::Render(args) => cli::render::run_render(&args),
+        Command::Dataset(args) => cli::render::run_dataset(&args),
     };
     match result {
         Ok(code) => code,

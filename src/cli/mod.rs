@@ -7,6 +7,7 @@ pub mod demo;
 pub mod kinematics;
 pub mod measure;
 pub mod merge;
+pub mod render;
 pub mod run;
 
 /// Exit code for bad input (the message names the file, key and reason).

@@ -1,0 +1,192 @@
+//! `twincell render SCENARIO --out DIR` and `twincell dataset SCENARIO --count N --out DIR`: the
+//! cell's camera, headless.
+//!
+//! `render` writes `DIR/shot.png` and `DIR/shot.json`: the calibration perception gets, the
+//! camera pose the frame was really taken from (with the scenario's pose jitter), and per labelled
+//! object its class, pixel box (inclusive first/last column and row) and, for parts, the bore's
+//! projected centre, mean radius and roundness in pixels and its true radius and roundness in mm.
+//! `dataset` writes an Ultralytics/YOLO dataset (see [`twincell::render::dataset`]).
+
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+use clap::Args;
+use nalgebra::Isometry3;
+use serde::Serialize;
+use twincell::perception::calibration::CameraCalibration;
+use twincell::render::{CameraRig, ObjectTruth, Renderer, RendererOptions, Shot, dataset};
+use twincell::scenario::Scenario;
+
+use super::BadInput;
+
+/// Arguments of `twincell render`.
+#[derive(Debug, Args)]
+pub struct RenderArgs {
+    /// The scenario file (TOML).
+    scenario: PathBuf,
+    /// Output directory.
+    #[arg(long, value_name = "DIR")]
+    out: PathBuf,
+    /// Which shot of the scenario's stream to render.
+    #[arg(long, default_value_t = 0)]
+    index: u64,
+    /// Image width and height in pixels, overriding the scenario's `camera.resolution_px`.
+    #[arg(long, value_names = ["W", "H"], num_args = 2)]
+    resolution: Option<Vec<u32>>,
+}
+
+/// Arguments of `twincell dataset`.
+#[derive(Debug, Args)]
+pub struct DatasetArgs {
+    /// The scenario file (TOML).
+    scenario: PathBuf,
+    /// Number of images.
+    #[arg(long)]
+    count: u64,
+    /// Output directory.
+    #[arg(long, value_name = "DIR")]
+    out: PathBuf,
+    /// Image width and height in pixels, overriding the scenario's `camera.resolution_px`.
+    #[arg(long, value_names = ["W", "H"], num_args = 2)]
+    resolution: Option<Vec<u32>>,
+}
+
+#[derive(Debug, Serialize)]
+struct CameraJson {
+    width_px: u32,
+    height_px: u32,
+    fx_px: f64,
+    fy_px: f64,
+    cx_px: f64,
+    cy_px: f64,
+    /// Row-major 4x4 pose of the camera in the world (x right, y down, z forward).
+    world_from_camera: [[f64; 4]; 4],
+}
+
+impl CameraJson {
+    fn new(c: &CameraCalibration, width_px: u32, height_px: u32) -> Self {
+        Self {
+            width_px,
+            height_px,
+            fx_px: c.fx_px,
+            fy_px: c.fy_px,
+            cx_px: c.cx_px,
+            cy_px: c.cy_px,
+            world_from_camera: matrix(&c.world_from_camera),
+        }
+    }
+}
+
+fn matrix(pose: &Isometry3<f64>) -> [[f64; 4]; 4] {
+    let m = pose.to_homogeneous();
+    std::array::from_fn(|r| std::array::from_fn(|c| m[(r, c)]))
+}
+
+#[derive(Debug, Serialize)]
+struct ShotJson<'a> {
+    scenario: &'a str,
+    seed: u64,
+    index: u64,
+    image: &'a str,
+    calibration: CameraJson,
+    rendered_camera: CameraJson,
+    objects: &'a [ObjectTruth],
+}
+
+/// Loads the scenario and the camera at the asked resolution.
+fn load(scenario_path: &Path, resolution: Option<&Vec<u32>>) -> Result<(Scenario, CameraRig)> {
+    let mut scenario = Scenario::load(scenario_path).map_err(|e| BadInput(e.to_string()))?;
+    if let Some(size) = resolution {
+        let &[w, h] = size.as_slice() else {
+            return Err(BadInput("--resolution: needs W and H".into()).into());
+        };
+        scenario.camera.resolution_px = [w, h];
+        scenario
+            .validate(scenario_path)
+            .map_err(|e| BadInput(format!("--resolution: {e}")))?;
+    }
+    let rig = CameraRig::from_scenario(&scenario)
+        .map_err(|e| BadInput(format!("{}: {e}", scenario_path.display())))?;
+    Ok((scenario, rig))
+}
+
+fn renderer_for(scenario: &Scenario) -> Result<Renderer> {
+    let renderer = Renderer::new(RendererOptions {
+        msaa_samples: scenario.camera.msaa_samples,
+        supersample: scenario.camera.supersample,
+    })?;
+    eprintln!("camera: rendering on {}", renderer.adapter_name());
+    Ok(renderer)
+}
+
+/// Runs `twincell render`.
+pub fn run_render(args: &RenderArgs) -> Result<ExitCode> {
+    let (scenario, rig) = load(&args.scenario, args.resolution.as_ref())?;
+    let urdf = twincell::render::shot::scenario_urdf(&scenario, &args.scenario)
+        .map_err(|e| BadInput(format!("{}: {e}", args.scenario.display())))?;
+    let mut renderer = renderer_for(&scenario)?;
+    let shot = Shot::pick_station(&scenario, urdf.as_ref(), &rig, &scenario.sensor, args.index)?;
+    let image = shot.render(&mut renderer)?;
+    let truths = shot.truth(&scenario);
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("cannot create {}", args.out.display()))?;
+    let image_path = args.out.join("shot.png");
+    image
+        .save(&image_path)
+        .with_context(|| format!("cannot write {}", image_path.display()))?;
+    let json = ShotJson {
+        scenario: &scenario.name,
+        seed: scenario.seed,
+        index: args.index,
+        image: "shot.png",
+        calibration: CameraJson::new(&rig.calibration, rig.width_px, rig.height_px),
+        rendered_camera: CameraJson::new(&shot.exposure.camera, rig.width_px, rig.height_px),
+        objects: &truths,
+    };
+    let json_path = args.out.join("shot.json");
+    std::fs::write(&json_path, serde_json::to_string_pretty(&json)? + "\n")
+        .with_context(|| format!("cannot write {}", json_path.display()))?;
+    println!(
+        "wrote {} and {} ({} labelled objects)",
+        image_path.display(),
+        json_path.display(),
+        truths.len()
+    );
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Runs `twincell dataset`.
+pub fn run_dataset(args: &DatasetArgs) -> Result<ExitCode> {
+    if args.count == 0 {
+        return Err(BadInput("--count: must be at least 1".into()).into());
+    }
+    let (scenario, rig) = load(&args.scenario, args.resolution.as_ref())?;
+    let urdf = twincell::render::shot::scenario_urdf(&scenario, &args.scenario)
+        .map_err(|e| BadInput(format!("{}: {e}", args.scenario.display())))?;
+    let mut renderer = renderer_for(&scenario)?;
+    let start = Instant::now();
+    let summary = dataset::export(
+        &scenario,
+        urdf.as_ref(),
+        &rig,
+        &mut renderer,
+        args.count,
+        &args.out,
+    )?;
+    println!(
+        "wrote {} train + {} val images to {} in {:.1} s; objects per class: {}",
+        summary.train,
+        summary.val,
+        args.out.display(),
+        start.elapsed().as_secs_f64(),
+        summary
+            .objects_per_class
+            .iter()
+            .map(|(name, n)| format!("{name} {n}"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    Ok(ExitCode::SUCCESS)
+}

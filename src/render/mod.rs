@@ -1,0 +1,27 @@
+//! The cell's camera: a headless wgpu renderer of the simulated cell, calibrated by construction.
+//!
+//! - [`scene`]: the cell's bodies as meshes ([`mesh`]) with materials ([`material`]) and poses,
+//!   read from a built [`crate::cell::Cell`] without changing it; the part's bore is its true,
+//!   non-round form.
+//! - [`renderer`]: a wgpu device (a GPU when there is one, else the software adapter: Mesa
+//!   llvmpipe through GL/EGL, or lavapipe through Vulkan), 4x MSAA (optionally supersampled),
+//!   an offscreen target read back into an [`image::RgbImage`]; no window, no surface. Its
+//!   projection is built from a [`crate::perception::calibration::CameraCalibration`], so the
+//!   renderer and perception share one camera model.
+//! - [`sensor`]: seeded sensor effects after the render (gradient, vignetting, noise,
+//!   salt-and-pepper); [`shot`]: a staged pick-station shot with drawn realism and ground truth;
+//!   [`dataset`]: an Ultralytics/YOLO dataset of such shots.
+
+pub mod dataset;
+pub mod error;
+pub mod material;
+pub mod mesh;
+pub mod renderer;
+pub mod scene;
+pub mod sensor;
+pub mod shot;
+
+pub use error::RenderError;
+pub use renderer::{Exposure, GpuScene, Light, Renderer, RendererOptions, StainBlob};
+pub use scene::{ObjectKind, Scene, SceneObject};
+pub use shot::{BoreTruth, CameraRig, ObjectTruth, Shot, ShotError};
