@@ -1,8 +1,10 @@
 //! The batch runner with a test-double cell: determinism across jobs and shards, panics,
 //! cancellation, reports, JUnit, and `twincell merge` through the binary.
 
+mod common;
+use common::twincell;
+
 use std::path::{Path, PathBuf};
-use std::process::Command;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
@@ -140,18 +142,6 @@ fn without_timing(dir: &Path) -> Vec<String> {
 
 fn report(dir: &Path) -> Value {
     serde_json::from_str(&read(&dir.join("report.json"))).expect("report JSON")
-}
-
-fn twincell(args: &[&str]) -> (i32, String, String) {
-    let output = Command::new(env!("CARGO_BIN_EXE_twincell"))
-        .args(args)
-        .output()
-        .expect("binary runs");
-    (
-        output.status.code().unwrap_or(-1),
-        String::from_utf8_lossy(&output.stdout).into_owned(),
-        String::from_utf8_lossy(&output.stderr).into_owned(),
-    )
 }
 
 #[test]

@@ -1,20 +1,9 @@
 //! The command-line contract: JSON shapes and exit codes, through the real binary.
 
-use std::process::Command;
+mod common;
+use common::twincell;
 
 use serde_json::Value;
-
-fn twincell(args: &[&str]) -> (i32, String, String) {
-    let output = Command::new(env!("CARGO_BIN_EXE_twincell"))
-        .args(args)
-        .output()
-        .expect("binary runs");
-    (
-        output.status.code().unwrap_or(-1),
-        String::from_utf8_lossy(&output.stdout).into_owned(),
-        String::from_utf8_lossy(&output.stderr).into_owned(),
-    )
-}
 
 fn numbers(value: &Value) -> Vec<f64> {
     value
@@ -89,4 +78,20 @@ fn bad_input_exits_with_code_2_and_says_why() {
     let (code, _, stderr) = twincell(&["demo", "--speed", "3"]);
     assert_eq!(code, 2);
     assert!(stderr.contains("--speed"), "{stderr}");
+}
+
+#[test]
+fn a_success_rate_outside_zero_to_one_is_bad_input() {
+    for command in ["run", "merge"] {
+        let (code, _, stderr) = twincell(&[
+            command,
+            "scenarios/smoke.toml",
+            "--min-success",
+            "1.5",
+            "--out",
+            "target/never-written",
+        ]);
+        assert_eq!(code, 2, "{command}: {stderr}");
+        assert!(stderr.contains("--min-success"), "{command}: {stderr}");
+    }
 }

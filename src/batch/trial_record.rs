@@ -22,6 +22,13 @@ pub enum Outcome {
     Failure,
 }
 
+impl Outcome {
+    /// Success when nothing failed.
+    pub fn from_failed(failed: bool) -> Self {
+        if failed { Self::Failure } else { Self::Success }
+    }
+}
+
 /// Every way a trial can fail.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]

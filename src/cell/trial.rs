@@ -299,11 +299,7 @@ impl<'a> Trial<'a> {
         TrialRecord {
             trial: index,
             seed,
-            outcome: if failure.is_some() {
-                Outcome::Failure
-            } else {
-                Outcome::Success
-            },
+            outcome: Outcome::from_failed(failure.is_some()),
             failure,
             detail,
             part: Some(cycle.part),
@@ -353,11 +349,7 @@ impl<'a> Trial<'a> {
                 };
                 parts.push(StreamPartRecord {
                     index: count_u32(parts.len()),
-                    outcome: if failed {
-                        Outcome::Failure
-                    } else {
-                        Outcome::Success
-                    },
+                    outcome: Outcome::from_failed(failed),
                     failure,
                     detail,
                     part: cycle.part,
@@ -414,11 +406,7 @@ impl<'a> Trial<'a> {
         TrialRecord {
             trial: index,
             seed,
-            outcome: if failure.is_some() {
-                Outcome::Failure
-            } else {
-                Outcome::Success
-            },
+            outcome: Outcome::from_failed(failure.is_some()),
             failure,
             detail: detail.map(|d| format!("{parts_sorted}/{planned} parts sorted; {d}")),
             part: None,

@@ -19,7 +19,7 @@ pub struct MergeArgs {
     #[arg(long, value_name = "DIR")]
     out: PathBuf,
     /// Least success rate that passes, in [0, 1] (exit code 1 below it).
-    #[arg(long, value_name = "RATE")]
+    #[arg(long, value_name = "RATE", value_parser = super::parse_rate)]
     min_success: Option<f64>,
     /// Print the merged report.json to stdout instead of the summary table.
     #[arg(long)]
@@ -28,11 +28,6 @@ pub struct MergeArgs {
 
 /// Runs `twincell merge`.
 pub fn run(args: &MergeArgs) -> Result<ExitCode> {
-    if let Some(rate) = args.min_success
-        && !(0.0..=1.0).contains(&rate)
-    {
-        return Err(BadInput(format!("--min-success: {rate} is not in [0, 1]")).into());
-    }
     let summary = match merge_shards(&args.dirs, &args.out, args.min_success) {
         Ok(summary) => summary,
         Err(err) if err.is_bad_input() => return Err(BadInput(err.to_string()).into()),

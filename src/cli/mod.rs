@@ -18,6 +18,18 @@ pub const EXIT_BAD_INPUT: u8 = 2;
 #[error("{0}")]
 pub struct BadInput(pub String);
 
+/// Parses a `--min-success` rate: a number in [0, 1].
+pub fn parse_rate(text: &str) -> Result<f64, String> {
+    let rate: f64 = text
+        .parse()
+        .map_err(|e| format!("{text:?} is not a number ({e})"))?;
+    if (0.0..=1.0).contains(&rate) {
+        Ok(rate)
+    } else {
+        Err(format!("{rate} is not in [0, 1]"))
+    }
+}
+
 /// Maps an error to the contract's exit code: 2 for bad input, 1 otherwise.
 pub fn exit_code_for(err: &anyhow::Error) -> ExitCode {
     if err.chain().any(|cause| cause.is::<BadInput>()) {

@@ -37,7 +37,7 @@ pub struct RunArgs {
     #[arg(long, value_enum, default_value_t = Perception::Camera)]
     perception: Perception,
     /// Least success rate that passes, in [0, 1] (exit code 1 below it).
-    #[arg(long, value_name = "RATE")]
+    #[arg(long, value_name = "RATE", value_parser = super::parse_rate)]
     min_success: Option<f64>,
     /// Print report.json to stdout instead of the summary table.
     #[arg(long)]
@@ -46,11 +46,6 @@ pub struct RunArgs {
 
 /// Runs `twincell run`.
 pub fn run(args: &RunArgs) -> Result<ExitCode> {
-    if let Some(rate) = args.min_success
-        && !(0.0..=1.0).contains(&rate)
-    {
-        return Err(BadInput(format!("--min-success: {rate} is not in [0, 1]")).into());
-    }
     let mut scenario = Scenario::load(&args.scenario).map_err(|e| BadInput(e.to_string()))?;
     if let Some(seed) = args.seed {
         scenario.seed = seed;
