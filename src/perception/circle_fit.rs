@@ -191,7 +191,7 @@ pub fn raw_roundness(points: &[[f64; 2]], centre: [f64; 2]) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::perception::synthetic::SplitMix64;
+    use crate::rng::SimRng;
     use proptest::prelude::*;
 
     fn noisy_circle(
@@ -203,11 +203,11 @@ mod tests {
         arc: f64,
         seed: u64,
     ) -> Vec<[f64; 2]> {
-        let mut rng = SplitMix64::new(seed);
+        let mut rng = SimRng::new(seed);
         (0..n)
             .map(|i| {
                 let t = arc * i as f64 / n as f64;
-                let rr = r + sigma * rng.gaussian();
+                let rr = r + sigma * rng.normal();
                 [cx + rr * t.cos(), cy + rr * t.sin()]
             })
             .collect()

@@ -161,7 +161,7 @@ pub fn filtered_roundness(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::perception::synthetic::SplitMix64;
+    use crate::rng::SimRng;
     use proptest::prelude::*;
 
     proptest! {
@@ -172,10 +172,10 @@ mod tests {
         ) {
             // As the bore detector samples: rays at even angles about a coarse centre up to a
             // pixel off, a tenth of them dropped.
-            let mut rng = SplitMix64::new(seed);
+            let mut rng = SimRng::new(seed);
             let origin = [10.0 + rng.range(-1.0, 1.0), -5.0 + rng.range(-1.0, 1.0)];
             let points: Vec<[f64; 2]> = (0..n)
-                .filter(|_| rng.unit() > 0.1)
+                .filter(|_| rng.uniform() > 0.1)
                 .map(|i| {
                     let t = TAU * i as f64 / n as f64;
                     // Radius of the lobed curve about (10, -5) in direction t from the origin,
@@ -203,11 +203,11 @@ mod tests {
 
     #[test]
     fn noise_is_averaged_not_accumulated() {
-        let mut rng = SplitMix64::new(3);
+        let mut rng = SimRng::new(3);
         let points: Vec<[f64; 2]> = (0..720)
             .map(|i| {
                 let t = TAU * i as f64 / 720.0;
-                let rr = 50.0 + 0.1 * rng.gaussian();
+                let rr = 50.0 + 0.1 * rng.normal();
                 [rr * t.cos(), rr * t.sin()]
             })
             .collect();

@@ -5,47 +5,9 @@
 //! command-line contract). Reflectance is multiplied by a smooth illumination field (linear gradient
 //! and radial vignetting), then Gaussian sensor noise and salt-and-pepper impulses are added.
 
+use crate::rng::SimRng;
 use image::{GrayImage, Luma};
 use std::f64::consts::{PI, TAU};
-
-/// Small deterministic PRNG (SplitMix64): the same seed gives the same scene on every platform.
-#[derive(Debug, Clone)]
-pub struct SplitMix64 {
-    state: u64,
-}
-
-impl SplitMix64 {
-    /// A generator seeded with `seed`.
-    pub fn new(seed: u64) -> Self {
-        Self { state: seed }
-    }
-
-    /// Next 64 random bits.
-    pub fn next_u64(&mut self) -> u64 {
-        self.state = self.state.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.state;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-
-    /// Uniform in `[0, 1)`.
-    pub fn unit(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
-    }
-
-    /// Uniform in `[low, high)`.
-    pub fn range(&mut self, low: f64, high: f64) -> f64 {
-        low + (high - low) * self.unit()
-    }
-
-    /// Standard normal (Box-Muller).
-    pub fn gaussian(&mut self) -> f64 {
-        let u1 = self.unit().max(1e-300);
-        let u2 = self.unit();
-        (-2.0 * u1.ln()).sqrt() * (TAU * u2).cos()
-    }
-}
 
 /// The true outline of a bore, as a radius about its centre for each direction.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -307,7 +269,7 @@ impl Scene {
     /// Renders the scene into an 8-bit grey image.
     pub fn render(&self) -> GrayImage {
         let (w, h) = (self.width_px, self.height_px);
-        let mut rng = SplitMix64::new(self.noise_seed);
+        let mut rng = SimRng::new(self.noise_seed);
         let mut image = GrayImage::new(w, h);
         let diag = (f64::from(w).powi(2) + f64::from(h).powi(2)).sqrt() / 2.0;
         let (cx, cy) = (f64::from(w) / 2.0, f64::from(h) / 2.0);
@@ -332,9 +294,9 @@ impl Scene {
                     + self.illumination.gradient_x * ((xf - cx) / f64::from(w))
                     + self.illumination.gradient_y * ((yf - cy) / f64::from(h)))
                     * (1.0 - self.illumination.vignetting * rho * rho);
-                let mut value = reflectance * light + self.noise.sigma * rng.gaussian();
-                if self.noise.salt_pepper > 0.0 && rng.unit() < self.noise.salt_pepper {
-                    value = if rng.unit() < 0.5 { 0.0 } else { 255.0 };
+                let mut value = reflectance * light + self.noise.sigma * rng.normal();
+                if self.noise.salt_pepper > 0.0 && rng.uniform() < self.noise.salt_pepper {
+                    value = if rng.uniform() < 0.5 { 0.0 } else { 255.0 };
                 }
                 image.put_pixel(x, y, Luma([value.round().clamp(0.0, 255.0) as u8]));
             }
@@ -484,11 +446,11 @@ fn bottle_reflectance(bottle: &Bottle, x: f64, y: f64) -> Option<f64> {
 /// of 8-60 px; bottles and stains are placed apart from the tubes' end faces except for stains,
 /// which may lie on rims.
 pub fn random_scene(seed: u64, width_px: u32, height_px: u32, difficulty: Difficulty) -> Scene {
-    let mut rng = SplitMix64::new(seed);
+    let mut rng = SimRng::new(seed);
     let (w, h) = (f64::from(width_px), f64::from(height_px));
     let max_bore_px = (w.min(h) / 2.0 - 30.0).clamp(20.0, 120.0) / 1.5;
     let mut discs: Vec<([f64; 2], f64)> = Vec::new();
-    let place = |rng: &mut SplitMix64, radius: f64, discs: &mut Vec<([f64; 2], f64)>| {
+    let place = |rng: &mut SimRng, radius: f64, discs: &mut Vec<([f64; 2], f64)>| {
         for _ in 0..200 {
             let c = [
                 rng.range(radius + 4.0, w - radius - 4.0),
@@ -576,12 +538,12 @@ pub fn random_scene(seed: u64, width_px: u32, height_px: u32, difficulty: Diffic
             1
         };
         for _ in 0..bottle_count {
-            let cap_level = if rng.unit() < 0.5 {
+            let cap_level = if rng.uniform() < 0.5 {
                 rng.range(40.0, 90.0)
             } else {
                 rng.range(150.0, 230.0)
             };
-            if rng.unit() < 0.5 {
+            if rng.uniform() < 0.5 {
                 let body = rng.range(45.0, 80.0);
                 if let Some(c) = place(&mut rng, body, &mut discs) {
                     bottles.push(Bottle::Standing {

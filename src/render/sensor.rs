@@ -59,13 +59,9 @@ impl SensorDraw {
             if let Some(z) = spare.take() {
                 return z;
             }
-            // Box-Muller, both deviates used.
-            let u1 = 1.0 - rng.uniform();
-            let u2 = rng.uniform();
-            let radius = (-2.0 * u1.ln()).sqrt();
-            let (s, c) = (std::f64::consts::TAU * u2).sin_cos();
-            spare = Some(radius * s);
-            radius * c
+            let (z, next) = rng.normal_pair();
+            spare = Some(next);
+            z
         };
         for (x, y, pixel) in image.enumerate_pixels_mut() {
             let (dx, dy) = (f64::from(x) - cx, f64::from(y) - cy);
