@@ -8,6 +8,7 @@ pub mod kinematics;
 pub mod math;
 pub mod perception;
 pub mod planning;
+pub mod record;
 pub mod render;
 pub mod rng;
 pub mod scenario;

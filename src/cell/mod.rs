@@ -3,6 +3,7 @@
 
 mod conveyor;
 mod layout;
+mod observer;
 mod part;
 mod trial;
 
@@ -10,6 +11,10 @@ use nalgebra::Isometry3;
 
 pub use conveyor::ConveyorHooks;
 pub use layout::{BinBody, Cell, CellError, Tag};
+pub use observer::{
+    BoreView, CellView, DetectionView, PerceptionFrame, SAMPLE_RATE_HZ, TrialObserver,
+    TrialObserverFactory,
+};
 pub use part::{BoreForm, PartInstance};
 pub use trial::CellTrialRunner;
 

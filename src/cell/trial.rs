@@ -4,11 +4,13 @@
 //! with a time-out and a named failure for every way it can go wrong.
 
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 use std::time::Instant;
 
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use rapier3d::prelude::*;
 
+use super::observer::{CellView, ObserverSlot, TrialObserver, TrialObserverFactory};
 use super::{Cell, CellError, PartInstance, Tag};
 use crate::batch::{
     DecisionRecord, FailureReason, Outcome, PartRecord, Perception, StreamPartRecord, StreamRecord,
@@ -54,6 +56,7 @@ pub struct CellTrialRunner {
     perception: Perception,
     urdf: Option<(PathBuf, String)>,
     ik: AnalyticIk,
+    observers: Option<Arc<dyn TrialObserverFactory>>,
 }
 
 impl CellTrialRunner {
@@ -91,7 +94,13 @@ impl CellTrialRunner {
             perception,
             urdf,
             ik,
+            observers: None,
         })
+    }
+
+    /// Has every trial watched by an observer from `factory` (records stay the same).
+    pub fn observe_with(&mut self, factory: Arc<dyn TrialObserverFactory>) {
+        self.observers = Some(factory);
     }
 
     /// The scenario run.
@@ -112,9 +121,11 @@ impl TrialRunner for CellTrialRunner {
     fn run_trial(&self, index: u32, seed: u64) -> TrialRecord {
         let started = Instant::now();
         let mut rng = SimRng::new(seed);
+        let mut observer = self.observers.as_ref().map(|f| f.observer(index));
         let mut record = match Cell::build(&self.scenario, self.urdf.as_ref(), &mut rng) {
             Ok(cell) => {
-                let trial = Trial::new(&self.scenario, self.perception, &self.ik, cell, rng);
+                let mut trial = Trial::new(&self.scenario, self.perception, &self.ik, cell, rng);
+                trial.attach(observer.as_deref_mut(), index);
                 if self.scenario.is_stream() {
                     trial.run_stream(index, seed)
                 } else {
@@ -129,6 +140,9 @@ impl TrialRunner for CellTrialRunner {
             ),
         };
         record.timing.wall_ms = started.elapsed().as_secs_f64() * 1e3;
+        if let Some(observer) = observer.as_mut() {
+            observer.finish_trial(&record);
+        }
         record
     }
 }
@@ -227,6 +241,7 @@ struct Trial<'a> {
     grip_force_n: f64,
     q: JointVector,
     pick_time_s: Option<f64>,
+    observer: ObserverSlot<'a>,
 }
 
 impl<'a> Trial<'a> {
@@ -282,7 +297,27 @@ impl<'a> Trial<'a> {
             grip_force_n: scenario.gripper.grip_force_n,
             q: scenario.robot.home_q_rad,
             pick_time_s: None,
+            observer: ObserverSlot::default(),
         }
+    }
+
+    /// Attaches an observer to trial `index` and shows it the cell as built.
+    fn attach(&mut self, observer: Option<&'a mut (dyn TrialObserver + 'static)>, index: u32) {
+        self.observer = ObserverSlot::new(observer);
+        let scenario = self.scenario;
+        self.observe(|slot, view| slot.begin(index, scenario, view));
+    }
+
+    /// Hands `f` the observer's slot and a view of the cell as it is now.
+    fn observe(&mut self, f: impl FnOnce(&mut ObserverSlot<'a>, &CellView<'_>)) {
+        let view = CellView {
+            cell: &self.cell,
+            parts: &self.parts,
+            phase: self.phase,
+            joint_command_rad: self.q,
+            grip_force_limit_n: self.grip_force_n,
+        };
+        f(&mut self.observer, &view);
     }
 
     /// The paper's trial: one part (and its bottle) from the belt into its bin.
@@ -1077,6 +1112,7 @@ impl<'a> Trial<'a> {
         let started = Instant::now();
         self.cell.world.step_with_hooks(&self.cell.conveyor);
         self.timing.physics_ms += started.elapsed().as_secs_f64() * 1e3;
+        self.observe(|slot, view| slot.step(view));
         let time_s = self.cell.world.time_s();
         if time_s > self.scenario.task.trial_timeout_s {
             return fail(

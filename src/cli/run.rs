@@ -9,6 +9,7 @@ use anyhow::Result;
 use clap::Args;
 use twincell::batch::{BatchPlan, Perception, Shard, cancel_on_signals, run_batch};
 use twincell::cell::CellTrialRunner;
+use twincell::record::{DEFAULT_VIEWER_ADDR, RerunRecorder};
 use twincell::scenario::Scenario;
 
 use super::BadInput;
@@ -42,6 +43,12 @@ pub struct RunArgs {
     /// Print report.json to stdout instead of the summary table.
     #[arg(long)]
     json: bool,
+    /// Record the trials into a Rerun recording (.rrd) for the viewer of Rerun 0.36.
+    #[arg(long, value_name = "FILE.rrd", conflicts_with = "connect")]
+    record: Option<PathBuf>,
+    /// Stream the trials to a running Rerun 0.36 viewer (HOST:PORT).
+    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = DEFAULT_VIEWER_ADDR)]
+    connect: Option<String>,
 }
 
 /// Runs `twincell run`.
@@ -65,11 +72,18 @@ pub fn run(args: &RunArgs) -> Result<ExitCode> {
         shard: args.shard,
         min_success: args.min_success,
     };
-    let runner = CellTrialRunner::new(scenario, &args.scenario, args.perception)
+    let mut runner = CellTrialRunner::new(scenario, &args.scenario, args.perception)
         .map_err(|e| BadInput(format!("{}: {e}", args.scenario.display())))?;
+    let recorder = recorder(args, &plan)?;
+    if let Some(recorder) = &recorder {
+        runner.observe_with(Arc::new(recorder.clone()));
+    }
     let cancel = Arc::new(AtomicBool::new(false));
     cancel_on_signals(&cancel)?;
     let summary = run_batch(&runner, &plan, &args.out, &cancel, !args.json)?;
+    if let Some(recorder) = recorder {
+        recorder.finish()?;
+    }
     if args.json {
         println!("{}", serde_json::to_string_pretty(&summary.report)?);
     } else {
@@ -77,4 +91,28 @@ pub fn run(args: &RunArgs) -> Result<ExitCode> {
         println!("results in {}", args.out.display());
     }
     Ok(ExitCode::from(summary.exit_code()))
+}
+
+/// The recorder `--record` or `--connect` asks for; one recording per batch, named after it.
+fn recorder(args: &RunArgs, plan: &BatchPlan) -> Result<Option<RerunRecorder>> {
+    let name = format!(
+        "{}-{:?}-seed{}",
+        plan.scenario_name, plan.perception, plan.scenario_seed
+    )
+    .to_lowercase();
+    if let Some(path) = &args.record {
+        if path.extension().is_none_or(|e| e != "rrd") {
+            let reason = "the file name must end in .rrd";
+            return Err(BadInput(format!("--record: {reason}: {}", path.display())).into());
+        }
+        let recorder =
+            RerunRecorder::save(path, &name).map_err(|e| BadInput(format!("--record: {e}")))?;
+        return Ok(Some(recorder));
+    }
+    match &args.connect {
+        Some(addr) => Ok(Some(
+            RerunRecorder::connect(addr, &name).map_err(|e| BadInput(format!("--connect: {e}")))?,
+        )),
+        None => Ok(None),
+    }
 }

@@ -4,6 +4,6 @@ mod arm;
 mod error;
 mod world;
 
-pub use arm::{ArmGains, JAW_SPEED_M_S, SimArm};
+pub use arm::{ARM_JOINTS, ArmGains, JAW_SPEED_M_S, SimArm};
 pub use error::SimError;
 pub use world::{World, WorldParams};
