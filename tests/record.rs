@@ -160,6 +160,8 @@ fn bad_record_paths_are_bad_input() {
         scenario,
         "--trials",
         "1",
+        "--perception",
+        "oracle",
         "--out",
         out_arg,
         "--record",

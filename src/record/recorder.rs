@@ -90,9 +90,11 @@ impl RerunRecorder {
         }
     }
 
-    /// Writes out everything logged and reports the first failure, if any.
+    /// Writes out everything logged, completes a file (its footer: nothing logged later reaches
+    /// it) and reports the first failure, if any.
     pub fn finish(&self) -> Result<(), RecordError> {
         let flushed = self.stream.flush_blocking();
+        self.stream.finalize_deferred_sinks();
         if let Some(reason) = self.first_error() {
             return Err(RecordError::Write { reason });
         }
