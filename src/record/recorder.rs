@@ -2,6 +2,7 @@
 
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex, PoisonError};
+use std::time::Duration;
 
 use rerun::{RecordingStream, RecordingStreamBuilder};
 
@@ -12,6 +13,8 @@ use crate::cell::{TrialObserver, TrialObserverFactory};
 pub const APPLICATION_ID: &str = "twincell";
 /// Where a Rerun viewer listens by default (`rerun` with no arguments).
 pub const DEFAULT_VIEWER_ADDR: &str = "127.0.0.1:9876";
+/// How long [`RerunRecorder::finish`] waits for a viewer to take what is left.
+const VIEWER_FLUSH_TIMEOUT: Duration = Duration::from_secs(20);
 
 /// Why a recording could not be made.
 #[derive(Debug, thiserror::Error)]
@@ -48,6 +51,8 @@ pub enum RecordError {
 pub struct RerunRecorder {
     stream: RecordingStream,
     first_error: Arc<Mutex<Option<String>>>,
+    /// A file is written to the end; a viewer that is not there must not hang the run.
+    flush_timeout: Duration,
 }
 
 impl RerunRecorder {
@@ -57,7 +62,7 @@ impl RerunRecorder {
             reason: e.to_string(),
             path: path.to_path_buf(),
         })?;
-        Ok(Self::with_stream(stream))
+        Ok(Self::with_stream(stream, Duration::MAX))
     }
 
     /// A recorder streaming to the viewer at `addr` (`HOST:PORT`, or a full
@@ -76,10 +81,10 @@ impl RerunRecorder {
                     reason: e.to_string(),
                     url,
                 })?;
-        Ok(Self::with_stream(stream))
+        Ok(Self::with_stream(stream, VIEWER_FLUSH_TIMEOUT))
     }
 
-    fn with_stream(stream: RecordingStream) -> Self {
+    fn with_stream(stream: RecordingStream, flush_timeout: Duration) -> Self {
         // Only simulated time and indices: the recording's content does not depend on the wall
         // clock or on how trials were spread over threads.
         stream.set_log_time_enabled(false);
@@ -87,13 +92,14 @@ impl RerunRecorder {
         Self {
             stream,
             first_error: Arc::new(Mutex::new(None)),
+            flush_timeout,
         }
     }
 
     /// Writes out everything logged, completes a file (its footer: nothing logged later reaches
     /// it) and reports the first failure, if any.
     pub fn finish(&self) -> Result<(), RecordError> {
-        let flushed = self.stream.flush_blocking();
+        let flushed = self.stream.flush_with_timeout(self.flush_timeout);
         self.stream.finalize_deferred_sinks();
         if let Some(reason) = self.first_error() {
             return Err(RecordError::Write { reason });
