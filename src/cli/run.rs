@@ -7,7 +7,7 @@ use std::sync::atomic::AtomicBool;
 
 use anyhow::Result;
 use clap::Args;
-use twincell::batch::{BatchPlan, Perception, Shard, cancel_on_signals, run_batch};
+use twincell::batch::{BatchPlan, BatchSummary, Perception, Shard, cancel_on_signals, run_batch};
 use twincell::cell::CellTrialRunner;
 use twincell::scenario::Scenario;
 
@@ -36,16 +36,32 @@ pub struct RunArgs {
     /// Where perception's answers come from.
     #[arg(long, value_enum, default_value_t = Perception::Camera)]
     perception: Perception,
+    /// The detector model for camera perception (default: the shipped one).
+    #[arg(long, value_name = "FILE.onnx")]
+    model: Option<PathBuf>,
     /// Least success rate that passes, in [0, 1] (exit code 1 below it).
     #[arg(long, value_name = "RATE", value_parser = super::parse_rate)]
     min_success: Option<f64>,
     /// Print report.json to stdout instead of the summary table.
     #[arg(long)]
-    json: bool,
+    pub json: bool,
 }
 
 /// Runs `twincell run`.
 pub fn run(args: &RunArgs) -> Result<ExitCode> {
+    let summary = run_scenario(args, !args.json)?;
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&summary.report)?);
+    } else {
+        print!("{}", summary.report.summary_table());
+        println!("results in {}", args.out.display());
+    }
+    Ok(ExitCode::from(summary.exit_code()))
+}
+
+/// Loads the scenario, applies the overrides and runs the batch (with a progress bar when
+/// `progress`), writing the output directory.
+pub fn run_scenario(args: &RunArgs, progress: bool) -> Result<BatchSummary> {
     let mut scenario = Scenario::load(&args.scenario).map_err(|e| BadInput(e.to_string()))?;
     if let Some(seed) = args.seed {
         scenario.seed = seed;
@@ -65,16 +81,14 @@ pub fn run(args: &RunArgs) -> Result<ExitCode> {
         shard: args.shard,
         min_success: args.min_success,
     };
-    let runner = CellTrialRunner::new(scenario, &args.scenario, args.perception)
-        .map_err(|e| BadInput(format!("{}: {e}", args.scenario.display())))?;
+    let runner = match &args.model {
+        Some(model) => {
+            CellTrialRunner::with_model(scenario, &args.scenario, args.perception, model)
+        }
+        None => CellTrialRunner::new(scenario, &args.scenario, args.perception),
+    }
+    .map_err(|e| BadInput(format!("{}: {e}", args.scenario.display())))?;
     let cancel = Arc::new(AtomicBool::new(false));
     cancel_on_signals(&cancel)?;
-    let summary = run_batch(&runner, &plan, &args.out, &cancel, !args.json)?;
-    if args.json {
-        println!("{}", serde_json::to_string_pretty(&summary.report)?);
-    } else {
-        print!("{}", summary.report.summary_table());
-        println!("results in {}", args.out.display());
-    }
-    Ok(ExitCode::from(summary.exit_code()))
+    Ok(run_batch(&runner, &plan, &args.out, &cancel, progress)?)
 }
