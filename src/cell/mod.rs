@@ -1,6 +1,7 @@
 //! The sorting cell: arm on a pedestal, conveyor with a photo-eye, bins, the part and the bottle,
 //! built into one physics world from a scenario, and the task controller that runs a trial.
 
+pub mod bottle_fit;
 pub mod camera_perception;
 mod conveyor;
 mod layout;
