@@ -31,17 +31,7 @@ pub struct RoundnessProfile {
 impl RoundnessProfile {
     /// Filtered radius in direction `theta_rad`.
     pub fn radius_at(&self, theta_rad: f64) -> f64 {
-        let (s1, c1) = theta_rad.sin_cos();
-        let (mut c, mut s) = (1.0f64, 0.0f64);
-        let mut r = self.mean_radius;
-        for &(a, b) in &self.harmonics {
-            // Rotate (cos k theta, sin k theta) by theta.
-            let c_next = c * c1 - s * s1;
-            s = s * c1 + c * s1;
-            c = c_next;
-            r += a * c + b * s;
-        }
-        r
+        series_at(self.mean_radius, &self.harmonics, theta_rad)
     }
 
     /// One-sigma uncertainty of `roundness` from edge noise: the profile's value at a point has
@@ -61,6 +51,142 @@ impl RoundnessProfile {
         }
         self.residual_rms * (n / dof).sqrt()
     }
+}
+
+/// `mean + sum_k a_k cos k theta + b_k sin k theta` for `k = 1..=harmonics.len()`.
+fn series_at(mean: f64, harmonics: &[(f64, f64)], theta_rad: f64) -> f64 {
+    let (s1, c1) = theta_rad.sin_cos();
+    let (mut c, mut s) = (1.0f64, 0.0f64);
+    let mut r = mean;
+    for &(a, b) in harmonics {
+        // Rotate (cos k theta, sin k theta) by theta.
+        let c_next = c * c1 - s * s1;
+        s = s * c1 + c * s1;
+        c = c_next;
+        r += a * c + b * s;
+    }
+    r
+}
+
+/// A low-order series `r(theta)` fitted robustly to radii that may include gross outliers: the
+/// arcs of an edge hidden or displaced by a stain, a speck of dirt, a neighbour.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RobustSeries {
+    /// Constant term.
+    pub mean: f64,
+    /// `(a_k, b_k)` for `k = 1..=order`.
+    pub harmonics: Vec<(f64, f64)>,
+    /// Robust scale of the residuals (1.4826 times their median absolute value, at least the
+    /// floor given to the fit).
+    pub scale: f64,
+}
+
+impl RobustSeries {
+    /// The series in direction `theta_rad`.
+    pub fn radius_at(&self, theta_rad: f64) -> f64 {
+        series_at(self.mean, &self.harmonics, theta_rad)
+    }
+}
+
+/// Tuning constant of Tukey's biweight, in robust scales (95 % efficiency on Gaussian data).
+const TUKEY_C: f64 = 4.685;
+
+/// Fits `r(theta) = mean + sum_{k <= order} a_k cos k theta + b_k sin k theta` to `(angles_rad,
+/// radii)` by iteratively reweighted least squares with Tukey's biweight: points further than
+/// `TUKEY_C` robust scales from the series get no weight, so an arc of displaced points (up to
+/// about a third of them) does not pull the series. Starts from the median radius, so the
+/// outliers never enter an unweighted first fit. `scale_floor` bounds the robust scale from
+/// below (the residuals of exact data would otherwise reject everything). `None` with fewer than
+/// `2 order + 2` points or a singular system.
+pub fn fit_series_robust(
+    angles_rad: &[f64],
+    radii: &[f64],
+    order: usize,
+    scale_floor: f64,
+) -> Option<RobustSeries> {
+    let n = radii.len().min(angles_rad.len());
+    let params = 2 * order + 1;
+    if n <= params {
+        return None;
+    }
+    // Basis rows: 1, cos theta, sin theta, ..., cos K theta, sin K theta.
+    let mut basis = vec![0.0f64; n * params];
+    for (row, &theta) in basis.chunks_exact_mut(params).zip(angles_rad) {
+        let (s1, c1) = theta.sin_cos();
+        let (mut c, mut s) = (1.0f64, 0.0f64);
+        row[0] = 1.0;
+        for k in 0..order {
+            let c_next = c * c1 - s * s1;
+            s = s * c1 + c * s1;
+            c = c_next;
+            row[1 + 2 * k] = c;
+            row[2 + 2 * k] = s;
+        }
+    }
+    let mut coefficients = nalgebra::DVector::<f64>::zeros(params);
+    let mut sorted: Vec<f64> = radii[..n].to_vec();
+    coefficients[0] = median_of(&mut sorted);
+    let evaluate = |coefficients: &nalgebra::DVector<f64>, i: usize| -> f64 {
+        basis[i * params..(i + 1) * params]
+            .iter()
+            .zip(coefficients.iter())
+            .map(|(b, c)| b * c)
+            .sum()
+    };
+    let mut residuals: Vec<f64> = (0..n)
+        .map(|i| radii[i] - evaluate(&coefficients, i))
+        .collect();
+    let mut scale = scale_floor;
+    for _ in 0..20 {
+        let mut abs: Vec<f64> = residuals.iter().map(|r| r.abs()).collect();
+        scale = (1.4826 * median_of(&mut abs)).max(scale_floor);
+        let cutoff = TUKEY_C * scale;
+        let mut normal = nalgebra::DMatrix::<f64>::zeros(params, params);
+        let mut rhs = nalgebra::DVector::<f64>::zeros(params);
+        for (i, &residual) in residuals.iter().enumerate() {
+            let u = residual / cutoff;
+            if u.abs() >= 1.0 {
+                continue;
+            }
+            let w = (1.0 - u * u).powi(2);
+            let row = &basis[i * params..(i + 1) * params];
+            for (a, &ra) in row.iter().enumerate() {
+                let wa = w * ra;
+                rhs[a] += wa * radii[i];
+                for (b, &rb) in row.iter().enumerate().take(a + 1) {
+                    normal[(a, b)] += wa * rb;
+                }
+            }
+        }
+        let normal =
+            nalgebra::DMatrix::from_fn(params, params, |a, b| normal[(a.max(b), a.min(b))]);
+        let next = normal.cholesky()?.solve(&rhs);
+        let change = (&next - &coefficients).amax();
+        coefficients = next;
+        for (i, r) in residuals.iter_mut().enumerate() {
+            *r = radii[i] - evaluate(&coefficients, i);
+        }
+        if change < 1e-4 * scale {
+            break;
+        }
+    }
+    Some(RobustSeries {
+        mean: coefficients[0],
+        harmonics: (0..order)
+            .map(|k| (coefficients[1 + 2 * k], coefficients[2 + 2 * k]))
+            .collect(),
+        scale,
+    })
+}
+
+/// Median of `values` (reordered); 0 for an empty slice.
+pub fn median_of(values: &mut [f64]) -> f64 {
+    if values.is_empty() {
+        return 0.0;
+    }
+    let mid = values.len() / 2;
+    let (_, m, _) = values.select_nth_unstable_by(mid, f64::total_cmp);
+    *m
 }
 
 /// Low-passed radial profile of `points` about `centre` and its `Rmax - Rmin`.
@@ -158,6 +284,28 @@ pub fn filtered_roundness(
     Ok(profile)
 }
 
+/// [`filtered_roundness`] of `points` about `centre`, with `bridges` (points of a model of the
+/// outline) filling the arcs without measured points; the noise figures count the measured
+/// points only.
+pub fn filtered_roundness_bridged(
+    points: &[[f64; 2]],
+    bridges: &[[f64; 2]],
+    centre: [f64; 2],
+    max_upr: usize,
+) -> Result<RoundnessProfile, PerceptionError> {
+    if bridges.is_empty() {
+        return filtered_roundness(points, centre, max_upr);
+    }
+    let all: Vec<[f64; 2]> = points.iter().chain(bridges).copied().collect();
+    let mut profile = filtered_roundness(&all, centre, max_upr)?;
+    // Bridge points sit on the series exactly: the residual sum is the measured points' alone.
+    let n_all = all.len() as f64;
+    let n = points.len().max(1) as f64;
+    profile.residual_rms *= (n_all / n).sqrt();
+    profile.point_count = points.len();
+    Ok(profile)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -199,6 +347,44 @@ mod tests {
             prop_assert!((profile.roundness - 2.0 * amp).abs() < 0.02 + 0.01 * amp);
             prop_assert!((profile.mean_radius - r).abs() < 0.01);
         }
+    }
+
+    #[test]
+    fn robust_series_ignores_a_displaced_arc() {
+        // A 3-lobe profile with a 40 degree arc pushed 3 px outwards (an edge read on a stain).
+        let (angles, radii): (Vec<f64>, Vec<f64>) = (0..360)
+            .map(|i| {
+                let t = f64::from(i).to_radians();
+                let displaced = if (100..140).contains(&i) { 3.0 } else { 0.0 };
+                (t, 50.0 + 0.8 * (3.0 * t + 0.4).cos() + displaced)
+            })
+            .unzip();
+        let Some(series) = fit_series_robust(&angles, &radii, 4, 0.01) else {
+            panic!("no fit");
+        };
+        assert!((series.mean - 50.0).abs() < 1e-3, "{series:?}");
+        let (a3, b3) = series.harmonics[2];
+        assert!((a3.hypot(b3) - 0.8).abs() < 1e-3, "{series:?}");
+        for (&t, &r) in angles.iter().zip(&radii).take(100) {
+            assert!((series.radius_at(t) - r).abs() < 1e-3);
+        }
+        // Bridging the arc with the series restores the roundness of the clean profile.
+        let point = |t: f64, r: f64| [r * t.cos(), r * t.sin()];
+        let kept: Vec<[f64; 2]> = (0..360)
+            .filter(|i| !(100..140).contains(i))
+            .map(|i| point(angles[i], radii[i]))
+            .collect();
+        let bridges: Vec<[f64; 2]> = (100..140)
+            .map(|i| point(angles[i], series.radius_at(angles[i])))
+            .collect();
+        let profile = filtered_roundness_bridged(&kept, &bridges, [0.0, 0.0], DEFAULT_MAX_UPR)
+            .unwrap_or_else(|e| panic!("{e}"));
+        assert!(
+            (profile.roundness - 1.6).abs() < 0.01,
+            "{}",
+            profile.roundness
+        );
+        assert_eq!(profile.point_count, kept.len());
     }
 
     #[test]
