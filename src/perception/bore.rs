@@ -256,7 +256,17 @@ impl BoreDetector {
             .collect();
         // Where the threshold cut a stain or dirt out of the rim, the hole border bulges around
         // it; a robust low-order outline of the border ignores such bulges.
-        let outline = fit_series_robust(&angles, &coarse_radii, OUTLINE_ORDER, 0.5)?;
+        let stride = ray_count.div_ceil(MAX_SERIES_POINTS);
+        let outline = fit_series_robust(
+            &angles.iter().step_by(stride).copied().collect::<Vec<_>>(),
+            &coarse_radii
+                .iter()
+                .step_by(stride)
+                .copied()
+                .collect::<Vec<_>>(),
+            OUTLINE_ORDER,
+            0.5,
+        )?;
 
         let mut scratch = Vec::new();
         let edges: Vec<EdgePoint> = angles
@@ -348,8 +358,9 @@ impl BoreDetector {
             .iter()
             .filter(|e| e.flank_departure() <= p.max_flank_departure)
             .collect();
-        let flat_angles: Vec<f64> = flat.iter().map(|e| e.angle_rad).collect();
-        let flat_radii: Vec<f64> = flat.iter().map(|e| e.radius_px).collect();
+        let stride = flat.len().div_ceil(MAX_SERIES_POINTS).max(1);
+        let flat_angles: Vec<f64> = flat.iter().step_by(stride).map(|e| e.angle_rad).collect();
+        let flat_radii: Vec<f64> = flat.iter().step_by(stride).map(|e| e.radius_px).collect();
         let series =
             fit_series_robust(&flat_angles, &flat_radii, EDGE_ORDER, p.edge_scale_floor_px)?;
         let limit = p.outlier_scales * series.scale;
@@ -449,6 +460,10 @@ const OUTLINE_ORDER: usize = 3;
 
 /// Order of the robust series the measured edges are checked against.
 const EDGE_ORDER: usize = 4;
+
+/// Most points a robust series is fitted to (every n-th of more): plenty for its few
+/// coefficients, and the fit's cost grows with them.
+const MAX_SERIES_POINTS: usize = 200;
 
 /// Measured edge points and bridge points of [`BoreDetector::clean_edges`].
 struct CleanArcs {

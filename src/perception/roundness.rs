@@ -91,13 +91,19 @@ impl RobustSeries {
 /// Tuning constant of Tukey's biweight, in robust scales (95 % efficiency on Gaussian data).
 const TUKEY_C: f64 = 4.685;
 
+/// Highest order [`fit_series_robust`] fits.
+pub const MAX_ROBUST_ORDER: usize = 4;
+
+/// Parameters of a series of [`MAX_ROBUST_ORDER`].
+const ROBUST_PARAMS: usize = 2 * MAX_ROBUST_ORDER + 1;
+
 /// Fits `r(theta) = mean + sum_{k <= order} a_k cos k theta + b_k sin k theta` to `(angles_rad,
 /// radii)` by iteratively reweighted least squares with Tukey's biweight: points further than
 /// `TUKEY_C` robust scales from the series get no weight, so an arc of displaced points (up to
 /// about a third of them) does not pull the series. Starts from the median radius, so the
 /// outliers never enter an unweighted first fit. `scale_floor` bounds the robust scale from
-/// below (the residuals of exact data would otherwise reject everything). `None` with fewer than
-/// `2 order + 2` points or a singular system.
+/// below (the residuals of exact data would otherwise reject everything). `None` for an `order`
+/// above [`MAX_ROBUST_ORDER`], with fewer than `2 order + 2` points or a singular system.
 pub fn fit_series_robust(
     angles_rad: &[f64],
     radii: &[f64],
@@ -106,67 +112,71 @@ pub fn fit_series_robust(
 ) -> Option<RobustSeries> {
     let n = radii.len().min(angles_rad.len());
     let params = 2 * order + 1;
-    if n <= params {
+    if order > MAX_ROBUST_ORDER || n <= params {
         return None;
     }
-    // Basis rows: 1, cos theta, sin theta, ..., cos K theta, sin K theta.
-    let mut basis = vec![0.0f64; n * params];
-    for (row, &theta) in basis.chunks_exact_mut(params).zip(angles_rad) {
-        let (s1, c1) = theta.sin_cos();
-        let (mut c, mut s) = (1.0f64, 0.0f64);
-        row[0] = 1.0;
-        for k in 0..order {
-            let c_next = c * c1 - s * s1;
-            s = s * c1 + c * s1;
-            c = c_next;
-            row[1 + 2 * k] = c;
-            row[2 + 2 * k] = s;
-        }
-    }
-    let mut coefficients = nalgebra::DVector::<f64>::zeros(params);
-    let mut sorted: Vec<f64> = radii[..n].to_vec();
-    coefficients[0] = median_of(&mut sorted);
-    let evaluate = |coefficients: &nalgebra::DVector<f64>, i: usize| -> f64 {
-        basis[i * params..(i + 1) * params]
-            .iter()
-            .zip(coefficients.iter())
-            .map(|(b, c)| b * c)
-            .sum()
+    // Basis rows: 1, cos theta, sin theta, ..., cos K theta, sin K theta (zero-padded).
+    let basis: Vec<[f64; ROBUST_PARAMS]> = angles_rad[..n]
+        .iter()
+        .map(|&theta| {
+            let mut row = [0.0; ROBUST_PARAMS];
+            let (s1, c1) = theta.sin_cos();
+            let (mut c, mut s) = (1.0f64, 0.0f64);
+            row[0] = 1.0;
+            for k in 0..order {
+                let c_next = c * c1 - s * s1;
+                s = s * c1 + c * s1;
+                c = c_next;
+                row[1 + 2 * k] = c;
+                row[2 + 2 * k] = s;
+            }
+            row
+        })
+        .collect();
+    let mut coefficients = [0.0; ROBUST_PARAMS];
+    let mut work: Vec<f64> = radii[..n].to_vec();
+    coefficients[0] = median_of(&mut work);
+    let dot = |row: &[f64; ROBUST_PARAMS], c: &[f64; ROBUST_PARAMS]| -> f64 {
+        row.iter().zip(c).map(|(a, b)| a * b).sum()
     };
-    let mut residuals: Vec<f64> = (0..n)
-        .map(|i| radii[i] - evaluate(&coefficients, i))
+    let mut residuals: Vec<f64> = basis
+        .iter()
+        .zip(radii)
+        .map(|(row, r)| r - dot(row, &coefficients))
         .collect();
     let mut scale = scale_floor;
-    for _ in 0..20 {
-        let mut abs: Vec<f64> = residuals.iter().map(|r| r.abs()).collect();
-        scale = (1.4826 * median_of(&mut abs)).max(scale_floor);
+    for _ in 0..MAX_IRLS_ITERATIONS {
+        work.clear();
+        work.extend(residuals.iter().map(|r| r.abs()));
+        scale = (1.4826 * median_of(&mut work)).max(scale_floor);
         let cutoff = TUKEY_C * scale;
-        let mut normal = nalgebra::DMatrix::<f64>::zeros(params, params);
-        let mut rhs = nalgebra::DVector::<f64>::zeros(params);
-        for (i, &residual) in residuals.iter().enumerate() {
+        let mut normal = [[0.0; ROBUST_PARAMS]; ROBUST_PARAMS];
+        let mut rhs = [0.0; ROBUST_PARAMS];
+        for ((row, &residual), &r) in basis.iter().zip(&residuals).zip(radii) {
             let u = residual / cutoff;
             if u.abs() >= 1.0 {
                 continue;
             }
             let w = (1.0 - u * u).powi(2);
-            let row = &basis[i * params..(i + 1) * params];
-            for (a, &ra) in row.iter().enumerate() {
-                let wa = w * ra;
-                rhs[a] += wa * radii[i];
-                for (b, &rb) in row.iter().enumerate().take(a + 1) {
-                    normal[(a, b)] += wa * rb;
+            for a in 0..params {
+                let wa = w * row[a];
+                rhs[a] += wa * r;
+                for b in 0..=a {
+                    normal[a][b] += wa * row[b];
                 }
             }
         }
-        let normal =
-            nalgebra::DMatrix::from_fn(params, params, |a, b| normal[(a.max(b), a.min(b))]);
-        let next = normal.cholesky()?.solve(&rhs);
-        let change = (&next - &coefficients).amax();
+        let next = solve_symmetric(&mut normal, &mut rhs, params)?;
+        let change = next
+            .iter()
+            .zip(&coefficients)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
         coefficients = next;
-        for (i, r) in residuals.iter_mut().enumerate() {
-            *r = radii[i] - evaluate(&coefficients, i);
+        for ((res, row), &r) in residuals.iter_mut().zip(&basis).zip(radii) {
+            *res = r - dot(row, &coefficients);
         }
-        if change < 1e-4 * scale {
+        if change < 1e-3 * scale {
             break;
         }
     }
@@ -177,6 +187,50 @@ pub fn fit_series_robust(
             .collect(),
         scale,
     })
+}
+
+/// Most reweighting rounds of [`fit_series_robust`]; it usually settles in five or six.
+const MAX_IRLS_ITERATIONS: usize = 12;
+
+/// Solves the symmetric positive definite system whose lower triangle (first `size` rows) is in
+/// `matrix` by Cholesky decomposition (in place). `None` when it is not positive definite.
+fn solve_symmetric(
+    matrix: &mut [[f64; ROBUST_PARAMS]; ROBUST_PARAMS],
+    rhs: &mut [f64; ROBUST_PARAMS],
+    size: usize,
+) -> Option<[f64; ROBUST_PARAMS]> {
+    for j in 0..size {
+        let mut diagonal = matrix[j][j];
+        for k in 0..j {
+            diagonal -= matrix[j][k] * matrix[j][k];
+        }
+        if diagonal.is_nan() || diagonal <= 1e-12 {
+            return None;
+        }
+        let root = diagonal.sqrt();
+        matrix[j][j] = root;
+        for i in j + 1..size {
+            let mut value = matrix[i][j];
+            for k in 0..j {
+                value -= matrix[i][k] * matrix[j][k];
+            }
+            matrix[i][j] = value / root;
+        }
+    }
+    // Forward then back substitution: L y = b, L^T x = y.
+    for i in 0..size {
+        for k in 0..i {
+            rhs[i] -= matrix[i][k] * rhs[k];
+        }
+        rhs[i] /= matrix[i][i];
+    }
+    for i in (0..size).rev() {
+        for k in i + 1..size {
+            rhs[i] -= matrix[k][i] * rhs[k];
+        }
+        rhs[i] /= matrix[i][i];
+    }
+    Some(*rhs)
 }
 
 /// Median of `values` (reordered); 0 for an empty slice.

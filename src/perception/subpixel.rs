@@ -100,7 +100,7 @@ pub fn sample_bilinear(image: &GrayImage, x: f64, y: f64) -> f64 {
 }
 
 /// Samples the ray from `centre` with unit direction `dir` at `from + step * i`, `i < count`,
-/// into `out` (cleared first).
+/// into `out` (cleared first); equal to [`sample_bilinear`] at each point.
 pub fn sample_ray(
     image: &GrayImage,
     centre: [f64; 2],
@@ -111,10 +111,44 @@ pub fn sample_ray(
     out: &mut Vec<f64>,
 ) {
     out.clear();
-    out.extend((0..count).map(|i| {
-        let t = from + step * i as f64;
-        sample_bilinear(image, centre[0] + t * dir[0], centre[1] + t * dir[1])
-    }));
+    let (w, h) = (image.width() as usize, image.height() as usize);
+    let at = |t: f64| [centre[0] + t * dir[0], centre[1] + t * dir[1]];
+    // Both ends strictly inside the last pixel row and column: so is the whole segment, and every
+    // sample has its four neighbours without clamping.
+    let inside =
+        |[x, y]: [f64; 2]| x >= 0.0 && y >= 0.0 && x < (w as f64 - 1.0) && y < (h as f64 - 1.0);
+    let last = from + step * count.saturating_sub(1) as f64;
+    if count == 0 || !(inside(at(from)) && inside(at(last))) {
+        out.extend((0..count).map(|i| {
+            let [x, y] = at(from + step * i as f64);
+            sample_bilinear(image, x, y)
+        }));
+        return;
+    }
+    let raw = image.as_raw();
+    out.resize(count, 0.0);
+    for (i, o) in out.iter_mut().enumerate() {
+        let [x, y] = at(from + step * i as f64);
+        let (x0, y0) = (x as usize, y as usize);
+        let (fx, fy) = (x - x0 as f64, y - y0 as f64);
+        let index = y0 * w + x0;
+        let (Some(&[p00, p01]), Some(&[p10, p11])) = (
+            raw.get(index..index + 2).and_then(|q| q.first_chunk::<2>()),
+            raw.get(index + w..index + w + 2)
+                .and_then(|q| q.first_chunk::<2>()),
+        ) else {
+            continue;
+        };
+        let (p00, p01, p10, p11) = (
+            f64::from(p00),
+            f64::from(p01),
+            f64::from(p10),
+            f64::from(p11),
+        );
+        let top = p00 + fx * (p01 - p00);
+        let bottom = p10 + fx * (p11 - p10);
+        *o = top + fy * (bottom - top);
+    }
 }
 
 /// Mean of `profile[from..=to]`, indices clamped to the profile.
@@ -354,6 +388,26 @@ mod tests {
             "mean radial error {}",
             sum / 360.0
         );
+    }
+
+    #[test]
+    fn ray_samples_equal_bilinear_samples_inside_and_across_the_border() {
+        let image = disc_scene(60.0, 70.0, 30.0);
+        let mut profile = Vec::new();
+        for (centre, angle, from) in [
+            ([80.0, 80.0], 0.3, 5.0),
+            ([150.0, 10.0], -0.7, 0.0),
+            ([3.0, 150.0], 2.5, -4.0),
+        ] {
+            let dir = [f64::cos(angle), f64::sin(angle)];
+            sample_ray(&image, centre, dir, from, 0.5, 40, &mut profile);
+            for (i, &v) in profile.iter().enumerate() {
+                let t = from + 0.5 * i as f64;
+                let expected =
+                    sample_bilinear(&image, centre[0] + t * dir[0], centre[1] + t * dir[1]);
+                assert!((v - expected).abs() < 1e-9, "sample {i}: {v} vs {expected}");
+            }
+        }
     }
 
     #[test]
