@@ -166,7 +166,18 @@ pub fn fit_series_robust(
                 }
             }
         }
-        let next = solve_symmetric(&mut normal, &mut rhs, params)?;
+        // Unused orders get an identity block and a zero right-hand side: zero coefficients.
+        let mut system = nalgebra::SMatrix::<f64, ROBUST_PARAMS, ROBUST_PARAMS>::identity();
+        for (a, row) in normal.iter().enumerate().take(params) {
+            for (b, &value) in row.iter().enumerate().take(a + 1) {
+                system[(a, b)] = value;
+                system[(b, a)] = value;
+            }
+        }
+        let solution = system
+            .cholesky()?
+            .solve(&nalgebra::SVector::<f64, ROBUST_PARAMS>::from(rhs));
+        let next: [f64; ROBUST_PARAMS] = solution.into();
         let change = next
             .iter()
             .zip(&coefficients)
@@ -191,47 +202,6 @@ pub fn fit_series_robust(
 
 /// Most reweighting rounds of [`fit_series_robust`]; it usually settles in five or six.
 const MAX_IRLS_ITERATIONS: usize = 12;
-
-/// Solves the symmetric positive definite system whose lower triangle (first `size` rows) is in
-/// `matrix` by Cholesky decomposition (in place). `None` when it is not positive definite.
-fn solve_symmetric(
-    matrix: &mut [[f64; ROBUST_PARAMS]; ROBUST_PARAMS],
-    rhs: &mut [f64; ROBUST_PARAMS],
-    size: usize,
-) -> Option<[f64; ROBUST_PARAMS]> {
-    for j in 0..size {
-        let mut diagonal = matrix[j][j];
-        for k in 0..j {
-            diagonal -= matrix[j][k] * matrix[j][k];
-        }
-        if diagonal.is_nan() || diagonal <= 1e-12 {
-            return None;
-        }
-        let root = diagonal.sqrt();
-        matrix[j][j] = root;
-        for i in j + 1..size {
-            let mut value = matrix[i][j];
-            for k in 0..j {
-                value -= matrix[i][k] * matrix[j][k];
-            }
-            matrix[i][j] = value / root;
-        }
-    }
-    // Forward then back substitution: L y = b, L^T x = y.
-    for i in 0..size {
-        for k in 0..i {
-            rhs[i] -= matrix[i][k] * rhs[k];
-        }
-        rhs[i] /= matrix[i][i];
-    }
-    for i in (0..size).rev() {
-        for k in i + 1..size {
-            rhs[i] -= matrix[k][i] * rhs[k];
-        }
-        rhs[i] /= matrix[i][i];
-    }
-    Some(*rhs)
-}
 
 /// Median of `values` (reordered); 0 for an empty slice.
 pub fn median_of(values: &mut [f64]) -> f64 {
