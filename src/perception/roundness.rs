@@ -31,17 +31,7 @@ pub struct RoundnessProfile {
 impl RoundnessProfile {
     /// Filtered radius in direction `theta_rad`.
     pub fn radius_at(&self, theta_rad: f64) -> f64 {
-        let (s1, c1) = theta_rad.sin_cos();
-        let (mut c, mut s) = (1.0f64, 0.0f64);
-        let mut r = self.mean_radius;
-        for &(a, b) in &self.harmonics {
-            // Rotate (cos k theta, sin k theta) by theta.
-            let c_next = c * c1 - s * s1;
-            s = s * c1 + c * s1;
-            c = c_next;
-            r += a * c + b * s;
-        }
-        r
+        series_at(self.mean_radius, &self.harmonics, theta_rad)
     }
 
     /// One-sigma uncertainty of `roundness` from edge noise: the profile's value at a point has
@@ -61,6 +51,166 @@ impl RoundnessProfile {
         }
         self.residual_rms * (n / dof).sqrt()
     }
+}
+
+/// `mean + sum_k a_k cos k theta + b_k sin k theta` for `k = 1..=harmonics.len()`.
+fn series_at(mean: f64, harmonics: &[(f64, f64)], theta_rad: f64) -> f64 {
+    let (s1, c1) = theta_rad.sin_cos();
+    let (mut c, mut s) = (1.0f64, 0.0f64);
+    let mut r = mean;
+    for &(a, b) in harmonics {
+        // Rotate (cos k theta, sin k theta) by theta.
+        let c_next = c * c1 - s * s1;
+        s = s * c1 + c * s1;
+        c = c_next;
+        r += a * c + b * s;
+    }
+    r
+}
+
+/// A low-order series `r(theta)` fitted robustly to radii that may include gross outliers: the
+/// arcs of an edge hidden or displaced by a stain, a speck of dirt, a neighbour.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RobustSeries {
+    /// Constant term.
+    pub mean: f64,
+    /// `(a_k, b_k)` for `k = 1..=order`.
+    pub harmonics: Vec<(f64, f64)>,
+    /// Robust scale of the residuals (1.4826 times their median absolute value, at least the
+    /// floor given to the fit).
+    pub scale: f64,
+}
+
+impl RobustSeries {
+    /// The series in direction `theta_rad`.
+    pub fn radius_at(&self, theta_rad: f64) -> f64 {
+        series_at(self.mean, &self.harmonics, theta_rad)
+    }
+}
+
+/// Tuning constant of Tukey's biweight, in robust scales (95 % efficiency on Gaussian data).
+const TUKEY_C: f64 = 4.685;
+
+/// Highest order [`fit_series_robust`] fits.
+pub const MAX_ROBUST_ORDER: usize = 4;
+
+/// Parameters of a series of [`MAX_ROBUST_ORDER`].
+const ROBUST_PARAMS: usize = 2 * MAX_ROBUST_ORDER + 1;
+
+/// Fits `r(theta) = mean + sum_{k <= order} a_k cos k theta + b_k sin k theta` to `(angles_rad,
+/// radii)` by iteratively reweighted least squares with Tukey's biweight: points further than
+/// `TUKEY_C` robust scales from the series get no weight, so an arc of displaced points (up to
+/// about a third of them) does not pull the series. Starts from the median radius, so the
+/// outliers never enter an unweighted first fit. `scale_floor` bounds the robust scale from
+/// below (the residuals of exact data would otherwise reject everything). `None` for an `order`
+/// above [`MAX_ROBUST_ORDER`], with fewer than `2 order + 2` points or a singular system.
+pub fn fit_series_robust(
+    angles_rad: &[f64],
+    radii: &[f64],
+    order: usize,
+    scale_floor: f64,
+) -> Option<RobustSeries> {
+    let n = radii.len().min(angles_rad.len());
+    let params = 2 * order + 1;
+    if order > MAX_ROBUST_ORDER || n <= params {
+        return None;
+    }
+    // Basis rows: 1, cos theta, sin theta, ..., cos K theta, sin K theta (zero-padded).
+    let basis: Vec<[f64; ROBUST_PARAMS]> = angles_rad[..n]
+        .iter()
+        .map(|&theta| {
+            let mut row = [0.0; ROBUST_PARAMS];
+            let (s1, c1) = theta.sin_cos();
+            let (mut c, mut s) = (1.0f64, 0.0f64);
+            row[0] = 1.0;
+            for k in 0..order {
+                let c_next = c * c1 - s * s1;
+                s = s * c1 + c * s1;
+                c = c_next;
+                row[1 + 2 * k] = c;
+                row[2 + 2 * k] = s;
+            }
+            row
+        })
+        .collect();
+    let mut coefficients = [0.0; ROBUST_PARAMS];
+    let mut work: Vec<f64> = radii[..n].to_vec();
+    coefficients[0] = median_of(&mut work);
+    let dot = |row: &[f64; ROBUST_PARAMS], c: &[f64; ROBUST_PARAMS]| -> f64 {
+        row.iter().zip(c).map(|(a, b)| a * b).sum()
+    };
+    let mut residuals: Vec<f64> = basis
+        .iter()
+        .zip(radii)
+        .map(|(row, r)| r - dot(row, &coefficients))
+        .collect();
+    let mut scale = scale_floor;
+    for _ in 0..MAX_IRLS_ITERATIONS {
+        work.clear();
+        work.extend(residuals.iter().map(|r| r.abs()));
+        scale = (1.4826 * median_of(&mut work)).max(scale_floor);
+        let cutoff = TUKEY_C * scale;
+        let mut normal = [[0.0; ROBUST_PARAMS]; ROBUST_PARAMS];
+        let mut rhs = [0.0; ROBUST_PARAMS];
+        for ((row, &residual), &r) in basis.iter().zip(&residuals).zip(radii) {
+            let u = residual / cutoff;
+            if u.abs() >= 1.0 {
+                continue;
+            }
+            let w = (1.0 - u * u).powi(2);
+            for a in 0..params {
+                let wa = w * row[a];
+                rhs[a] += wa * r;
+                for b in 0..=a {
+                    normal[a][b] += wa * row[b];
+                }
+            }
+        }
+        // Unused orders get an identity block and a zero right-hand side: zero coefficients.
+        let mut system = nalgebra::SMatrix::<f64, ROBUST_PARAMS, ROBUST_PARAMS>::identity();
+        for (a, row) in normal.iter().enumerate().take(params) {
+            for (b, &value) in row.iter().enumerate().take(a + 1) {
+                system[(a, b)] = value;
+                system[(b, a)] = value;
+            }
+        }
+        let solution = system
+            .cholesky()?
+            .solve(&nalgebra::SVector::<f64, ROBUST_PARAMS>::from(rhs));
+        let next: [f64; ROBUST_PARAMS] = solution.into();
+        let change = next
+            .iter()
+            .zip(&coefficients)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        coefficients = next;
+        for ((res, row), &r) in residuals.iter_mut().zip(&basis).zip(radii) {
+            *res = r - dot(row, &coefficients);
+        }
+        if change < 1e-3 * scale {
+            break;
+        }
+    }
+    Some(RobustSeries {
+        mean: coefficients[0],
+        harmonics: (0..order)
+            .map(|k| (coefficients[1 + 2 * k], coefficients[2 + 2 * k]))
+            .collect(),
+        scale,
+    })
+}
+
+/// Most reweighting rounds of [`fit_series_robust`]; it usually settles in five or six.
+const MAX_IRLS_ITERATIONS: usize = 12;
+
+/// Median of `values` (reordered); 0 for an empty slice.
+pub fn median_of(values: &mut [f64]) -> f64 {
+    if values.is_empty() {
+        return 0.0;
+    }
+    let mid = values.len() / 2;
+    let (_, m, _) = values.select_nth_unstable_by(mid, f64::total_cmp);
+    *m
 }
 
 /// Low-passed radial profile of `points` about `centre` and its `Rmax - Rmin`.
@@ -158,6 +308,28 @@ pub fn filtered_roundness(
     Ok(profile)
 }
 
+/// [`filtered_roundness`] of `points` about `centre`, with `bridges` (points of a model of the
+/// outline) filling the arcs without measured points; the noise figures count the measured
+/// points only.
+pub fn filtered_roundness_bridged(
+    points: &[[f64; 2]],
+    bridges: &[[f64; 2]],
+    centre: [f64; 2],
+    max_upr: usize,
+) -> Result<RoundnessProfile, PerceptionError> {
+    if bridges.is_empty() {
+        return filtered_roundness(points, centre, max_upr);
+    }
+    let all: Vec<[f64; 2]> = points.iter().chain(bridges).copied().collect();
+    let mut profile = filtered_roundness(&all, centre, max_upr)?;
+    // Bridge points sit on the series exactly: the residual sum is the measured points' alone.
+    let n_all = all.len() as f64;
+    let n = points.len().max(1) as f64;
+    profile.residual_rms *= (n_all / n).sqrt();
+    profile.point_count = points.len();
+    Ok(profile)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -199,6 +371,44 @@ mod tests {
             prop_assert!((profile.roundness - 2.0 * amp).abs() < 0.02 + 0.01 * amp);
             prop_assert!((profile.mean_radius - r).abs() < 0.01);
         }
+    }
+
+    #[test]
+    fn robust_series_ignores_a_displaced_arc() {
+        // A 3-lobe profile with a 40 degree arc pushed 3 px outwards (an edge read on a stain).
+        let (angles, radii): (Vec<f64>, Vec<f64>) = (0..360)
+            .map(|i| {
+                let t = f64::from(i).to_radians();
+                let displaced = if (100..140).contains(&i) { 3.0 } else { 0.0 };
+                (t, 50.0 + 0.8 * (3.0 * t + 0.4).cos() + displaced)
+            })
+            .unzip();
+        let Some(series) = fit_series_robust(&angles, &radii, 4, 0.01) else {
+            panic!("no fit");
+        };
+        assert!((series.mean - 50.0).abs() < 1e-3, "{series:?}");
+        let (a3, b3) = series.harmonics[2];
+        assert!((a3.hypot(b3) - 0.8).abs() < 1e-3, "{series:?}");
+        for (&t, &r) in angles.iter().zip(&radii).take(100) {
+            assert!((series.radius_at(t) - r).abs() < 1e-3);
+        }
+        // Bridging the arc with the series restores the roundness of the clean profile.
+        let point = |t: f64, r: f64| [r * t.cos(), r * t.sin()];
+        let kept: Vec<[f64; 2]> = (0..360)
+            .filter(|i| !(100..140).contains(i))
+            .map(|i| point(angles[i], radii[i]))
+            .collect();
+        let bridges: Vec<[f64; 2]> = (100..140)
+            .map(|i| point(angles[i], series.radius_at(angles[i])))
+            .collect();
+        let profile = filtered_roundness_bridged(&kept, &bridges, [0.0, 0.0], DEFAULT_MAX_UPR)
+            .unwrap_or_else(|e| panic!("{e}"));
+        assert!(
+            (profile.roundness - 1.6).abs() < 0.01,
+            "{}",
+            profile.roundness
+        );
+        assert_eq!(profile.point_count, kept.len());
     }
 
     #[test]
