@@ -3,6 +3,9 @@
 //! Every mesh is a plain triangle list (three vertices per triangle, outward normals, counter-
 //! clockwise seen from outside). The axle part's mesh carries its true bore: the end face's inner
 //! edge follows [`BoreForm::radius_at`] at [`BORE_SEGMENTS`] points.
+//!
+//! Triangles are kept few and wide where that costs no accuracy: a software rasteriser shades
+//! whole 4x4 pixel blocks, so a sub-pixel sliver costs as much as a block of pixels.
 
 use nalgebra::{Point3, Vector3};
 
@@ -13,6 +16,8 @@ use crate::cell::BoreForm;
 pub const BORE_SEGMENTS: usize = 1024;
 /// Segments around other round bodies.
 pub const ROUND_SEGMENTS: usize = 64;
+/// Segments around a part's outer wall (its edge error is below 10 um for a 62 mm part).
+pub const OUTER_SEGMENTS: usize = 128;
 
 /// One vertex in a body's frame.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -55,6 +60,45 @@ impl Mesh {
                 normal,
                 material,
             });
+        }
+    }
+
+    /// Adds a triangle (counter-clockwise from outside) with one normal.
+    fn triangle(&mut self, corners: [Point3<f64>; 3], normal: Vector3<f64>, material: Material) {
+        for position in corners {
+            self.vertices.push(MeshVertex {
+                position,
+                normal,
+                material,
+            });
+        }
+    }
+
+    /// Fills the band between two closed rings in a plane normal to z, `inner` nearer the axis,
+    /// both listed counter-clockwise about z from the same angle: each point is joined to the
+    /// other ring's points nearest in turn. `up` says which side is outside.
+    fn zip_rings(
+        &mut self,
+        inner: &[Point3<f64>],
+        outer: &[Point3<f64>],
+        up: bool,
+        material: Material,
+    ) {
+        let (n, m) = (inner.len(), outer.len());
+        let normal = if up { Vector3::z() } else { -Vector3::z() };
+        let (mut i, mut j) = (0, 0);
+        while i < n || j < m {
+            let (a, o) = (inner[i % n], outer[j % m]);
+            // Advance the ring whose next point comes first in the turn.
+            let next = if j == m || (i < n && (i + 1) * m <= (j + 1) * n) {
+                i += 1;
+                inner[i % n]
+            } else {
+                j += 1;
+                outer[j % m]
+            };
+            let corners = if up { [a, o, next] } else { [a, next, o] };
+            self.triangle(corners, normal, material);
         }
     }
 
@@ -147,58 +191,64 @@ impl Mesh {
 
     /// An axle part: a tube standing on its bottom face, centred on the origin, whose bore
     /// follows `bore` exactly (its edge at [`BORE_SEGMENTS`] angles), with a machined end face on
-    /// top, a turned outer wall and a dark bore wall.
+    /// top, a turned outer wall ([`OUTER_SEGMENTS`]) and a dark bore wall.
+    ///
+    /// Each flat face is two bands: a narrow one from the bore edge out to a ring a quarter of the
+    /// wall thickness away ([`OUTER_SEGMENTS`] points), then a wide one to the outer edge, so the
+    /// many thin triangles along the bore edge stay short.
     pub fn axle_part(bore: &BoreForm, outer_radius_m: f64, height_m: f64) -> Self {
         let mut mesh = Self::default();
-        let n = BORE_SEGMENTS;
+        let (n, m) = (BORE_SEGMENTS, OUTER_SEGMENTS);
         let (top, bottom) = (height_m / 2.0, -height_m / 2.0);
-        let inner = |k: usize| {
-            let t = angle(k, n);
-            let r = bore.radius_at(t);
-            (Point3::new(r * t.cos(), r * t.sin(), 0.0), t)
-        };
-        for k in 0..n {
-            let ((a, t0), (b, t1)) = (inner(k), inner(k + 1));
-            let outer =
-                |t: f64, z: f64| Point3::new(outer_radius_m * t.cos(), outer_radius_m * t.sin(), z);
-            let lift = |p: Point3<f64>, z: f64| Point3::new(p.x, p.y, z);
-            let up = Vector3::z();
-            // End face: an annulus from the bore edge out to the outer radius.
-            mesh.quad(
-                [lift(a, top), outer(t0, top), outer(t1, top), lift(b, top)],
-                [up; 4],
-                Material::END_FACE,
-            );
+        let at = |r: f64, t: f64, z: f64| Point3::new(r * t.cos(), r * t.sin(), z);
+        let bore_edge: Vec<(f64, f64)> = (0..n)
+            .map(|k| (bore.radius_at(angle(k, n)), angle(k, n)))
+            .collect();
+        let widest = bore_edge.iter().map(|(r, _)| *r).fold(0.0, f64::max);
+        let margin = (outer_radius_m - widest) / 4.0;
+        for (z, up) in [(top, true), (bottom, false)] {
             // The underside stands on the belt at the belt's own depth; dark, so where the two
             // fight for the depth test (seen down the bore) it looks like the belt.
+            let material = if up {
+                Material::END_FACE
+            } else {
+                Material::BORE
+            };
+            let inner: Vec<Point3<f64>> = bore_edge.iter().map(|&(r, t)| at(r, t, z)).collect();
+            let middle: Vec<Point3<f64>> = (0..m)
+                .map(|k| {
+                    let t = angle(k, m);
+                    at(bore.radius_at(t) + margin, t, z)
+                })
+                .collect();
+            let outer: Vec<Point3<f64>> =
+                (0..m).map(|k| at(outer_radius_m, angle(k, m), z)).collect();
+            mesh.zip_rings(&inner, &middle, up, material);
+            mesh.zip_rings(&middle, &outer, up, material);
+        }
+        let radial = |t: f64| Vector3::new(t.cos(), t.sin(), 0.0);
+        for k in 0..m {
+            let (t0, t1) = (angle(k, m), angle(k + 1, m));
             mesh.quad(
                 [
-                    lift(a, bottom),
-                    lift(b, bottom),
-                    outer(t1, bottom),
-                    outer(t0, bottom),
-                ],
-                [-up; 4],
-                Material::BORE,
-            );
-            let radial = |t: f64| Vector3::new(t.cos(), t.sin(), 0.0);
-            mesh.quad(
-                [
-                    outer(t0, bottom),
-                    outer(t1, bottom),
-                    outer(t1, top),
-                    outer(t0, top),
+                    at(outer_radius_m, t0, bottom),
+                    at(outer_radius_m, t1, bottom),
+                    at(outer_radius_m, t1, top),
+                    at(outer_radius_m, t0, top),
                 ],
                 [radial(t0), radial(t1), radial(t1), radial(t0)],
                 Material::PART_WALL,
             );
-            // The bore wall faces the axis.
+        }
+        // The bore wall faces the axis.
+        for k in 0..n {
+            let ((r0, t0), (r1, t1)) = (bore_edge[k], bore_edge[(k + 1) % n]);
             mesh.flat_triangle(
-                [lift(a, bottom), lift(a, top), lift(b, top)],
+                [at(r0, t0, bottom), at(r0, t0, top), at(r1, t1, top)],
                 Material::BORE,
             );
             mesh.flat_triangle(
-                [lift(a, bottom), lift(b, top), lift(b, bottom)],
+                [at(r0, t0, bottom), at(r1, t1, top), at(r1, t1, bottom)],
                 Material::BORE,
             );
         }
@@ -241,6 +291,12 @@ fn angle(k: usize, n: usize) -> f64 {
 mod tests {
     use super::*;
 
+    /// Twice the signed area of a polygon in the xy plane.
+    fn twice_area(points: impl Iterator<Item = (f64, f64)> + Clone) -> f64 {
+        let next = points.clone().cycle().skip(1);
+        points.zip(next).map(|(a, b)| a.0 * b.1 - a.1 * b.0).sum()
+    }
+
     #[test]
     fn part_end_face_edge_follows_the_true_bore() {
         let bore = BoreForm::Lobed {
@@ -249,24 +305,45 @@ mod tests {
             lobes: 3,
             phase_rad: 0.7,
         };
-        let mesh = Mesh::axle_part(&bore, 0.019, 0.07);
-        let top: Vec<&MeshVertex> = mesh
+        let (outer, height) = (0.019, 0.07);
+        let mesh = Mesh::axle_part(&bore, outer, height);
+        let top: Vec<&[MeshVertex]> = mesh
             .vertices
-            .iter()
-            .filter(|v| v.material == Material::END_FACE)
+            .chunks_exact(3)
+            .filter(|t| t[0].material == Material::END_FACE)
             .collect();
-        assert!(!top.is_empty());
-        let mut inner = 0;
-        for v in &top {
-            assert!((v.position.z - 0.035).abs() < 1e-12);
-            let r = v.position.coords.xy().norm();
-            let t = v.position.y.atan2(v.position.x);
-            if (r - 0.019).abs() > 1e-9 {
-                assert!((r - bore.radius_at(t)).abs() < 1e-12, "{r} at {t}");
-                inner += 1;
+        let mut on_bore: Vec<(f64, f64)> = Vec::new();
+        let mut face_area = 0.0;
+        for t in &top {
+            let [a, b, c] = [t[0].position, t[1].position, t[2].position];
+            // Flat, facing up, counter-clockwise seen from above.
+            let normal = (b - a).cross(&(c - a));
+            assert!(normal.z > 0.0 && normal.xy().norm() < 1e-15, "{normal}");
+            face_area += normal.z / 2.0;
+            for p in [a, b, c] {
+                assert!((p.z - height / 2.0).abs() < 1e-12);
+                let (r, angle) = (p.coords.xy().norm(), p.y.atan2(p.x));
+                assert!(r <= outer + 1e-12 && r >= bore.radius_at(angle) - 1e-12);
+                if (r - bore.radius_at(angle)).abs() < 1e-12 {
+                    on_bore.push((p.x, p.y));
+                }
             }
         }
-        assert_eq!(inner, 3 * BORE_SEGMENTS);
+        // The face's inner edge is the bore at every one of its points...
+        on_bore.sort_by(|a, b| a.1.atan2(a.0).total_cmp(&b.1.atan2(b.0)));
+        on_bore.dedup();
+        assert_eq!(on_bore.len(), BORE_SEGMENTS);
+        // ...and the face covers exactly the outer polygon less the bore polygon: no gap, no
+        // overlap.
+        let outer_polygon = (0..OUTER_SEGMENTS).map(|k| {
+            let t = angle(k, OUTER_SEGMENTS);
+            (outer * t.cos(), outer * t.sin())
+        });
+        let exact = (twice_area(outer_polygon) - twice_area(on_bore.iter().copied())) / 2.0;
+        assert!(
+            (face_area - exact).abs() < 1e-12 * exact,
+            "{face_area} {exact}"
+        );
     }
 
     #[test]
