@@ -63,42 +63,41 @@ impl Mesh {
         }
     }
 
-    /// Adds a triangle (counter-clockwise from outside) with one normal.
-    fn triangle(&mut self, corners: [Point3<f64>; 3], normal: Vector3<f64>, material: Material) {
-        for position in corners {
-            self.vertices.push(MeshVertex {
-                position,
-                normal,
-                material,
-            });
-        }
-    }
-
-    /// Fills the band between two closed rings in a plane normal to z, `inner` nearer the axis,
-    /// both listed counter-clockwise about z from the same angle: each point is joined to the
-    /// other ring's points nearest in turn. `up` says which side is outside.
+    /// Fills the band between two closed rings, each listed counter-clockwise about z from the
+    /// same angle: each point is joined to the other ring's points nearest in turn. The
+    /// triangles wind counter-clockwise seen from +z where `a` lies inside `b` in a plane (swap
+    /// the rings for the other side). `normal` is the band's, or each triangle's own if `None`.
     fn zip_rings(
         &mut self,
-        inner: &[Point3<f64>],
-        outer: &[Point3<f64>],
-        up: bool,
+        a: &[Point3<f64>],
+        b: &[Point3<f64>],
+        normal: Option<Vector3<f64>>,
         material: Material,
     ) {
-        let (n, m) = (inner.len(), outer.len());
-        let normal = if up { Vector3::z() } else { -Vector3::z() };
+        let (n, m) = (a.len(), b.len());
         let (mut i, mut j) = (0, 0);
         while i < n || j < m {
-            let (a, o) = (inner[i % n], outer[j % m]);
+            let (p, q) = (a[i % n], b[j % m]);
             // Advance the ring whose next point comes first in the turn.
             let next = if j == m || (i < n && (i + 1) * m <= (j + 1) * n) {
                 i += 1;
-                inner[i % n]
+                a[i % n]
             } else {
                 j += 1;
-                outer[j % m]
+                b[j % m]
             };
-            let corners = if up { [a, o, next] } else { [a, next, o] };
-            self.triangle(corners, normal, material);
+            match normal {
+                Some(normal) => {
+                    for position in [p, q, next] {
+                        self.vertices.push(MeshVertex {
+                            position,
+                            normal,
+                            material,
+                        });
+                    }
+                }
+                None => self.flat_triangle([p, q, next], material),
+            }
         }
     }
 
@@ -193,65 +192,64 @@ impl Mesh {
     /// follows `bore` exactly (its edge at [`BORE_SEGMENTS`] angles), with a machined end face on
     /// top, a turned outer wall ([`OUTER_SEGMENTS`]) and a dark bore wall.
     ///
-    /// Each flat face is two bands: a narrow one from the bore edge out to a ring a quarter of the
-    /// wall thickness away ([`OUTER_SEGMENTS`] points), then a wide one to the outer edge, so the
-    /// many thin triangles along the bore edge stay short.
+    /// Only the end face's bore edge needs all [`BORE_SEGMENTS`] points; the triangles along it
+    /// are kept short: the end face is a narrow band from the bore edge out to a ring a quarter of
+    /// the wall thickness away, then a wide band to the outer edge, and the bore wall a band as
+    /// deep as that below the edge, then [`OUTER_SEGMENTS`] facets down to the bottom (on the
+    /// true bore at their corners). The bottom face, never in view, has [`OUTER_SEGMENTS`].
     pub fn axle_part(bore: &BoreForm, outer_radius_m: f64, height_m: f64) -> Self {
         let mut mesh = Self::default();
         let (n, m) = (BORE_SEGMENTS, OUTER_SEGMENTS);
         let (top, bottom) = (height_m / 2.0, -height_m / 2.0);
-        let at = |r: f64, t: f64, z: f64| Point3::new(r * t.cos(), r * t.sin(), z);
-        let bore_edge: Vec<(f64, f64)> = (0..n)
-            .map(|k| (bore.radius_at(angle(k, n)), angle(k, n)))
-            .collect();
-        let widest = bore_edge.iter().map(|(r, _)| *r).fold(0.0, f64::max);
-        let margin = (outer_radius_m - widest) / 4.0;
-        for (z, up) in [(top, true), (bottom, false)] {
-            // The underside stands on the belt at the belt's own depth; dark, so where the two
-            // fight for the depth test (seen down the bore) it looks like the belt.
-            let material = if up {
-                Material::END_FACE
-            } else {
-                Material::BORE
-            };
-            let inner: Vec<Point3<f64>> = bore_edge.iter().map(|&(r, t)| at(r, t, z)).collect();
-            let middle: Vec<Point3<f64>> = (0..m)
+        let ring = |count: usize, z: f64, radius: &dyn Fn(f64) -> f64| -> Vec<Point3<f64>> {
+            (0..count)
                 .map(|k| {
-                    let t = angle(k, m);
-                    at(bore.radius_at(t) + margin, t, z)
+                    let t = angle(k, count);
+                    let r = radius(t);
+                    Point3::new(r * t.cos(), r * t.sin(), z)
                 })
-                .collect();
-            let outer: Vec<Point3<f64>> =
-                (0..m).map(|k| at(outer_radius_m, angle(k, m), z)).collect();
-            mesh.zip_rings(&inner, &middle, up, material);
-            mesh.zip_rings(&middle, &outer, up, material);
-        }
-        let radial = |t: f64| Vector3::new(t.cos(), t.sin(), 0.0);
+                .collect()
+        };
+        let edge = ring(n, top, &|t| bore.radius_at(t));
+        let widest = edge
+            .iter()
+            .map(|p| p.coords.xy().norm())
+            .fold(0.0, f64::max);
+        let band = ((outer_radius_m - widest) / 4.0).min(height_m / 4.0);
+        let bore_at = |z: f64| ring(m, z, &|t| bore.radius_at(t));
+        let outer_at = |z: f64| ring(m, z, &|_| outer_radius_m);
+        let up = Some(Vector3::z());
+        // End face.
+        let middle = ring(m, top, &|t| bore.radius_at(t) + band);
+        mesh.zip_rings(&edge, &middle, up, Material::END_FACE);
+        mesh.zip_rings(&middle, &outer_at(top), up, Material::END_FACE);
+        // The underside stands on the belt at the belt's own depth; dark, so where the two fight
+        // for the depth test (seen down the bore) it looks like the belt.
+        mesh.zip_rings(
+            &outer_at(bottom),
+            &bore_at(bottom),
+            Some(-Vector3::z()),
+            Material::BORE,
+        );
+        let radial = |p: &Point3<f64>| Vector3::new(p.x, p.y, 0.0).normalize();
+        let (low, high) = (outer_at(bottom), outer_at(top));
         for k in 0..m {
-            let (t0, t1) = (angle(k, m), angle(k + 1, m));
+            let (a, b) = (k, (k + 1) % m);
             mesh.quad(
+                [low[a], low[b], high[b], high[a]],
                 [
-                    at(outer_radius_m, t0, bottom),
-                    at(outer_radius_m, t1, bottom),
-                    at(outer_radius_m, t1, top),
-                    at(outer_radius_m, t0, top),
+                    radial(&low[a]),
+                    radial(&low[b]),
+                    radial(&high[b]),
+                    radial(&high[a]),
                 ],
-                [radial(t0), radial(t1), radial(t1), radial(t0)],
                 Material::PART_WALL,
             );
         }
         // The bore wall faces the axis.
-        for k in 0..n {
-            let ((r0, t0), (r1, t1)) = (bore_edge[k], bore_edge[(k + 1) % n]);
-            mesh.flat_triangle(
-                [at(r0, t0, bottom), at(r0, t0, top), at(r1, t1, top)],
-                Material::BORE,
-            );
-            mesh.flat_triangle(
-                [at(r0, t0, bottom), at(r1, t1, top), at(r1, t1, bottom)],
-                Material::BORE,
-            );
-        }
+        let below_edge = bore_at(top - band);
+        mesh.zip_rings(&below_edge, &edge, None, Material::BORE);
+        mesh.zip_rings(&bore_at(bottom), &below_edge, None, Material::BORE);
         mesh
     }
 
