@@ -70,7 +70,7 @@ impl Bounds {
 /// is matched by the same edge the other way round in another triangle.
 fn is_closed(positions: &[Point3<f64>]) -> bool {
     let triangles = positions.len() / 3;
-    if triangles < 4 || triangles > MAX_OCCLUDER_TRIANGLES || positions.len() % 3 != 0 {
+    if !(4..=MAX_OCCLUDER_TRIANGLES).contains(&triangles) || !positions.len().is_multiple_of(3) {
         return false;
     }
     let edges: Vec<(Point3<f64>, Point3<f64>)> = positions
