@@ -14,9 +14,11 @@ use crate::perception::calibration::CameraCalibration;
 /// Meshes with at most this many triangles are checked for being closed and convex, so they can
 /// hide what lies behind them.
 const MAX_OCCLUDER_TRIANGLES: usize = 64;
-/// A footprint grows by this much, pixels, before it is tested against the occluders (covers
-/// single-precision vertex rounding on the device).
+/// A footprint grows by this much, pixels, before it is tested against the occluders.
 const MARGIN_PX: f64 = 1.0;
+/// An occluder's outline shrinks by this much, pixels (far more than the device's
+/// single-precision vertex rounding moves an edge).
+const SHRINK_PX: f64 = 0.01;
 /// Pieces of a footprint smaller than this, square pixels, are rounding noise along an
 /// occluder's edge, not a gap.
 const NEGLIGIBLE_AREA_PX2: f64 = 1e-9;
@@ -186,7 +188,8 @@ impl View {
                     .iter()
                     .map(|p| camera_from_object[i] * p)
                     .collect();
-                if points.iter().any(|p| p.z < self.near_m) {
+                // Clipped by the near or far plane, it would not cover its outline.
+                if points.iter().any(|p| p.z < self.near_m || p.z > self.far_m) {
                     return None;
                 }
                 let far = points.iter().map(|p| p.z).fold(f64::MIN, f64::max);
@@ -268,8 +271,8 @@ fn convex_hull(mut points: Vec<[f64; 2]>) -> Vec<[f64; 2]> {
     hull
 }
 
-/// The part of convex polygon `piece` outside convex polygon `hole` (both wound as
-/// [`convex_hull`] winds), as convex pieces.
+/// The part of convex polygon `piece` outside convex polygon `hole` (wound as [`convex_hull`]
+/// winds) shrunk by [`SHRINK_PX`], as convex pieces.
 fn subtract(piece: &[[f64; 2]], hole: &[[f64; 2]]) -> Vec<Vec<[f64; 2]>> {
     if hole.len() < 3 {
         return vec![piece.to_vec()];
@@ -278,8 +281,10 @@ fn subtract(piece: &[[f64; 2]], hole: &[[f64; 2]]) -> Vec<Vec<[f64; 2]>> {
     let mut rest = piece.to_vec();
     for (k, a) in hole.iter().enumerate() {
         let b = hole[(k + 1) % hole.len()];
-        // Left of a -> b (positive cross product) is inside the hole.
-        let side = |p: &[f64; 2]| (b[0] - a[0]) * (p[1] - a[1]) - (b[1] - a[1]) * (p[0] - a[0]);
+        // Left of a -> b (positive cross product), by more than the shrink, is inside the hole.
+        let shrink = SHRINK_PX * (b[0] - a[0]).hypot(b[1] - a[1]);
+        let side =
+            |p: &[f64; 2]| (b[0] - a[0]) * (p[1] - a[1]) - (b[1] - a[1]) * (p[0] - a[0]) - shrink;
         let outside = clip(&rest, |p| -side(p));
         if area(&outside) > NEGLIGIBLE_AREA_PX2 {
             out.push(outside);
@@ -349,18 +354,59 @@ mod tests {
         let square = |x0: f64, y0: f64, x1: f64, y1: f64| {
             convex_hull(vec![[x0, y0], [x1, y0], [x1, y1], [x0, y1]])
         };
+        let total = |pieces: &[Vec<[f64; 2]>]| pieces.iter().map(|p| area(p)).sum::<f64>();
         let piece = square(0.0, 0.0, 10.0, 10.0);
-        // Two overlapping halves cover it; one half leaves the other.
+        // Two overlapping halves cover it; one half leaves the other (holes shrink by 0.01).
         let left = square(-1.0, -1.0, 6.0, 11.0);
         let right = square(5.0, -1.0, 11.0, 11.0);
         let rest = subtract(&piece, &left);
-        let total: f64 = rest.iter().map(|p| area(p)).sum();
-        assert!((total - 40.0).abs() < 1e-9, "{total}");
-        let rest: Vec<_> = rest.iter().flat_map(|p| subtract(p, &right)).collect();
-        assert!(rest.is_empty(), "{rest:?}");
+        assert!((total(&rest) - 40.1).abs() < 1e-9, "{rest:?}");
+        let covered: Vec<_> = rest.iter().flat_map(|p| subtract(p, &right)).collect();
+        assert!(covered.is_empty(), "{covered:?}");
+        // Halves that only touch leave a sliver: not covered.
+        let touching = square(6.0, -1.0, 11.0, 11.0);
+        let sliver: Vec<_> = rest.iter().flat_map(|p| subtract(p, &touching)).collect();
+        assert!((total(&sliver) - 0.2).abs() < 1e-9, "{sliver:?}");
         // A hole inside leaves a frame of four pieces.
         let rest = subtract(&piece, &square(2.0, 2.0, 8.0, 8.0));
-        let total: f64 = rest.iter().map(|p| area(p)).sum();
-        assert!((total - 64.0).abs() < 1e-9, "{total}");
+        assert_eq!(rest.len(), 4);
+        assert!((total(&rest) - (100.0 - 5.98 * 5.98)).abs() < 1e-9);
+    }
+
+    /// A camera 0.6 m above a belt-like box looking straight down: a floor box below is hidden
+    /// while the belt fills the view, seen once the belt is too narrow, and an object beside the
+    /// view is never drawn.
+    #[test]
+    fn a_box_filling_the_view_hides_what_lies_behind_it() {
+        let eye = Point3::new(0.0, 0.0, 1.3);
+        let Some(world_from_camera) =
+            CameraCalibration::look_at(&eye, &Point3::new(0.0, 0.0, 0.7), &Vector3::x())
+        else {
+            panic!("camera");
+        };
+        let camera =
+            CameraCalibration::from_fov(640, 480, 44f64.to_radians(), world_from_camera, 0.7);
+        let view = View::new(&camera, 640, 480, 0.02, 20.0);
+        let camera_from_world = world_from_camera.inverse();
+        let boxed = |half: Vector3<f64>, centre: Vector3<f64>| {
+            (
+                Bounds::of(&Mesh::cuboid(half, Material::BELT).vertices),
+                camera_from_world * Isometry3::translation(centre.x, centre.y, centre.z),
+            )
+        };
+        let visible = |belt_half_width: f64| {
+            let objects = [
+                boxed(Vector3::new(3.0, 3.0, 0.05), Vector3::new(0.0, 0.0, -0.05)),
+                boxed(
+                    Vector3::new(0.8, belt_half_width, 0.025),
+                    Vector3::new(0.0, 0.0, 0.675),
+                ),
+                boxed(Vector3::new(0.05, 0.05, 0.05), Vector3::new(1.5, 0.0, 0.75)),
+            ];
+            let (bounds, poses): (Vec<Bounds>, Vec<Isometry3<f64>>) = objects.into_iter().unzip();
+            view.visible(&bounds, &poses, &[1, 0, 2])
+        };
+        assert_eq!(visible(0.3), vec![1]);
+        assert_eq!(visible(0.15), vec![1, 0]);
     }
 }
