@@ -26,7 +26,7 @@ fn continuous(bbox_px: [u32; 4]) -> [f64; 4] {
 }
 
 /// Bottles of 60 staged pick-station shots (standing and lying, at every yaw): a fitted pose
-/// lies within 15 mm of the true one, with the axis within 12 degrees when the bottle lies, and
+/// lies within 15 mm of the true one, with the axis within 8 degrees when the bottle lies, and
 /// standing and lying are never confused.
 #[test]
 fn bottle_poses_fitted_to_their_boxes_match_the_truth() {
@@ -82,6 +82,7 @@ fn bottle_poses_fitted_to_their_boxes_match_the_truth() {
                     "shot {index}: axis off by {angle_deg:.1} deg"
                 );
                 lying_seen += 1;
+                worst_deg = worst_deg.max(angle_deg);
             }
             worst_mm = worst_mm.max(offset_mm);
             checked += 1;
@@ -91,7 +92,7 @@ fn bottle_poses_fitted_to_their_boxes_match_the_truth() {
         "{checked} bottles ({lying_seen} lying), worst middle offset {worst_mm:.1} mm, worst lying axis {worst_deg:.1} deg"
     );
     assert!(
-        checked >= 30 && lying_seen >= 5,
+        checked >= 25 && lying_seen >= 10,
         "{checked} bottles, {lying_seen} lying"
     );
 }
