@@ -4,6 +4,7 @@ pub mod batch;
 pub mod cell;
 pub mod control;
 pub mod demo;
+pub mod detect;
 pub mod kinematics;
 pub mod math;
 pub mod perception;

@@ -4,6 +4,7 @@
 use std::process::ExitCode;
 
 pub mod demo;
+pub mod detect;
 pub mod kinematics;
 pub mod measure;
 pub mod merge;
