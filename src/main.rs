@@ -34,6 +34,8 @@ enum Command {
     Render(cli::render::RenderArgs),
     /// Write a synthetic Ultralytics/YOLO dataset of pick-station images.
     Dataset(cli::render::DatasetArgs),
+    /// Find parts and bottles in images with the shipped detector network.
+    Detect(cli::detect::DetectArgs),
 }
 
 fn main() -> ExitCode {
@@ -55,6 +57,7 @@ fn main() -> ExitCode {
         Command::Merge(args) => cli::merge::run(&args),
         Command::Render(args) => cli::render::run_render(&args),
         Command::Dataset(args) => cli::render::run_dataset(&args),
+        Command::Detect(args) => cli::detect::run(&args),
     };
     match result {
         Ok(code) => code,
