@@ -12,6 +12,8 @@ use crate::scenario::BottleSection;
 const LYING_YAW_STEPS: usize = 180;
 /// Fixed-point iterations that move a hypothesis until its box centre meets the detection.
 const FIT_ITERATIONS: usize = 12;
+/// A hypothesis whose last move was shorter than this has converged, m.
+const CONVERGED_M: f64 = 1e-6;
 /// A hypothesis within this box residual of the best one is kept as well, pixels.
 const AMBIGUITY_PX: f64 = 2.0;
 
@@ -133,8 +135,12 @@ impl BottleFitter {
                 let Ok(at) = on_mid_plane([(b[0] + b[2]) / 2.0, (b[1] + b[3]) / 2.0]) else {
                     break;
                 };
-                x += want.x - at.x;
-                y += want.y - at.y;
+                let (dx, dy) = (want.x - at.x, want.y - at.y);
+                x += dx;
+                y += dy;
+                if dx.hypot(dy) < CONVERGED_M {
+                    break;
+                }
             }
             let Some(b) = fitted else {
                 continue;

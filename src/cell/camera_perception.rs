@@ -328,13 +328,7 @@ pub fn measure_in_box(
     let (dx, dy) = (f64::from(left), f64::from(top));
     let bore = bores
         .into_iter()
-        .map(|mut bore| {
-            bore.centre_px = [bore.centre_px[0] + dx, bore.centre_px[1] + dy];
-            for p in &mut bore.edge_points_px {
-                *p = [p[0] + dx, p[1] + dy];
-            }
-            bore
-        })
+        .map(|bore| bore.translated(dx, dy))
         .filter(|b| (x0..=x1).contains(&b.centre_px[0]) && (y0..=y1).contains(&b.centre_px[1]))
         .min_by(|a, b| {
             let d = |b: &Bore| (b.centre_px[0] - centre[0]).hypot(b.centre_px[1] - centre[1]);

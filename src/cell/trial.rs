@@ -532,7 +532,7 @@ impl<'a> Trial<'a> {
                     None => format!("bottle moved {:.1} mm", displacement_m * 1e3),
                 },
             })
-        } else if placed_bin.as_deref() != Some(correct_bin.as_str()) {
+        } else if !self.bin_is_right(&part, placed_bin.as_deref()) {
             Some(Failure {
                 reason: FailureReason::WrongBin,
                 detail: format!(
@@ -555,6 +555,20 @@ impl<'a> Trial<'a> {
                 .pick_time_s
                 .map_or(0.0, |t| self.cell.world.time_s() - t),
         }
+    }
+
+    /// Whether `placed_bin` is right for `part`: the bin its true roundness calls for or, for a
+    /// part within [`crate::batch::CLEAR_CUT_BAND_MM`] of the tolerance (where no measurement can
+    /// prove conformance either way, as in ISO 14253-1's uncertainty zone), either its type's
+    /// accept bin or the reject bin.
+    fn bin_is_right(&self, part: &PartRecord, placed_bin: Option<&str>) -> bool {
+        let Some(placed) = placed_bin else {
+            return false;
+        };
+        placed == part.correct_bin
+            || (!part.clear_cut
+                && (placed == self.bin_for(&part.part_type, true)
+                    || placed == self.bin_for(&part.part_type, false)))
     }
 
     /// Runs the belt until the bottle at the photo-eye has passed it.

@@ -100,25 +100,24 @@ impl Detector {
         let (input, letterbox) = self.preprocess(image)?;
         let raw = self.run_raw(&input)?;
         let threshold = self.card.score_threshold;
-        let candidates = raw
-            .rows()
-            .into_iter()
-            .filter_map(|row| {
-                let (class_id, p) = row
-                    .iter()
-                    .skip(5)
-                    .enumerate()
-                    .fold((0, f32::NEG_INFINITY), |best, (i, &p)| {
-                        if p > best.1 { (i, p) } else { best }
-                    });
-                let score = row[4] * p;
-                (score >= threshold).then(|| Candidate {
-                    class_id,
-                    score,
-                    box_px: [row[0], row[1], row[2], row[3]],
+        let candidates =
+            raw.rows()
+                .into_iter()
+                .filter_map(|row| {
+                    let (class_id, p) = row.iter().skip(5).enumerate().fold(
+                        (0, f32::NEG_INFINITY),
+                        |best, (i, &p)| {
+                            if p > best.1 { (i, p) } else { best }
+                        },
+                    );
+                    let score = row[4] * p;
+                    (score >= threshold).then(|| Candidate {
+                        class_id,
+                        score,
+                        box_px: [row[0], row[1], row[2], row[3]],
+                    })
                 })
-            })
-            .collect();
+                .collect();
         let kept = non_max_suppression(candidates, self.card.nms_iou_threshold);
         Ok(kept
             .into_iter()

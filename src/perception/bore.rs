@@ -156,6 +156,22 @@ pub struct Bore {
     pub outer_ratio: f64,
 }
 
+impl Bore {
+    /// The same bore seen in an image whose origin lies `(dx_px, dy_px)` before this one's (a bore
+    /// found in a crop, moved into the full image): every pixel coordinate shifts.
+    pub fn translated(mut self, dx_px: f64, dy_px: f64) -> Self {
+        self.centre_px = [self.centre_px[0] + dx_px, self.centre_px[1] + dy_px];
+        for p in self
+            .edge_points_px
+            .iter_mut()
+            .chain(self.bridge_points_px.iter_mut())
+        {
+            *p = [p[0] + dx_px, p[1] + dy_px];
+        }
+        self
+    }
+}
+
 /// Smallest image side the detector accepts.
 pub const MIN_IMAGE_SIDE_PX: u32 = 16;
 
