@@ -100,7 +100,7 @@ impl BottleFitter {
     /// Poses (standing, or lying at any yaw) that explain `box_px`: each hypothesis is slid over
     /// the belt until its projected box is centred on the detection, then scored by the RMS
     /// difference of the four sides. The best pose and every distinct pose within
-    /// [`AMBIGUITY_PX`] of it are returned, best first: a lying bottle seen from above can look
+    /// `AMBIGUITY_PX` (2 px) of it are returned, best first: a lying bottle seen from above can look
     /// the same at mirrored yaws, and the planner must keep clear of each.
     pub fn fit(&self, box_px: &[f64; 4], belt_top_z_m: f64) -> Vec<BottlePose> {
         let centre = [(box_px[0] + box_px[2]) / 2.0, (box_px[1] + box_px[3]) / 2.0];

@@ -305,7 +305,7 @@ impl CameraPerception {
     }
 }
 
-/// Finds the bore inside a part's box (widened by [`BOX_MARGIN`]) and measures it on the
+/// Finds the bore inside a part's box (widened by `BOX_MARGIN`, 15 % a side) and measures it on the
 /// end-face plane; the bore nearest the box centre wins. `None` when there is none.
 pub fn measure_in_box(
     bore_detector: &BoreDetector,

@@ -54,8 +54,6 @@ const PLANNING_MARGIN_M: f64 = 0.008;
 const SEEN_BOTTLE_GROWTH_M: f64 = 0.004;
 /// Salt that keeps the camera's realism stream apart from the trial's physics stream.
 const CAMERA_SALT: u64 = 0x4C4F_4F4B;
-/// Where the detector model ships, relative to the crate.
-pub const DEFAULT_MODEL: &str = "assets/models/detector.onnx";
 
 /// Runs sorting trials of a scenario in the cell.
 #[derive(Debug, Clone)]
@@ -68,13 +66,13 @@ pub struct CellTrialRunner {
 
 impl CellTrialRunner {
     /// A runner for `scenario` (read from `scenario_path`, which anchors a relative URDF path);
-    /// camera perception uses the shipped detector model ([`DEFAULT_MODEL`]).
+    /// camera perception uses the shipped detector model (`assets/models/detector.onnx`).
     pub fn new(
         scenario: Scenario,
         scenario_path: &Path,
         perception: Perception,
     ) -> Result<Self, CellError> {
-        let model = Path::new(env!("CARGO_MANIFEST_DIR")).join(DEFAULT_MODEL);
+        let model = crate::detect::Detector::default_path();
         Self::with_model(scenario, scenario_path, perception, &model)
     }
 
