@@ -30,7 +30,7 @@ use crate::perception::roundness::{
     DEFAULT_MAX_UPR, RoundnessProfile, filtered_roundness, filtered_roundness_bridged,
     fit_series_robust, median_of,
 };
-use crate::perception::subpixel::{EdgePoint, RayParams, refine_ray, sample_bilinear};
+use crate::perception::subpixel::{EdgePoint, RayDir, RayParams, refine_ray, sample_bilinear};
 use crate::perception::threshold::ThresholdMethod;
 use image::GrayImage;
 use std::f64::consts::TAU;
@@ -251,14 +251,18 @@ impl BoreDetector {
         }
         let ray_count = ((TAU * coarse.radius).round() as usize).clamp(180, 1024);
         let coarse_radii = binned_radii(&border, coarse.centre, ray_count, coarse.radius);
-        let angles: Vec<f64> = (0..ray_count)
-            .map(|i| TAU * i as f64 / ray_count as f64)
+        let rays: Vec<RayDir> = (0..ray_count)
+            .map(|i| RayDir::new(TAU * i as f64 / ray_count as f64))
             .collect();
         // Where the threshold cut a stain or dirt out of the rim, the hole border bulges around
         // it; a robust low-order outline of the border ignores such bulges.
         let stride = ray_count.div_ceil(MAX_SERIES_POINTS);
         let outline = fit_series_robust(
-            &angles.iter().step_by(stride).copied().collect::<Vec<_>>(),
+            &rays
+                .iter()
+                .step_by(stride)
+                .map(|r| r.unit)
+                .collect::<Vec<_>>(),
             &coarse_radii
                 .iter()
                 .step_by(stride)
@@ -269,11 +273,11 @@ impl BoreDetector {
         )?;
 
         let mut scratch = Vec::new();
-        let edges: Vec<EdgePoint> = angles
+        let edges: Vec<EdgePoint> = rays
             .iter()
-            .filter_map(|&angle| {
-                let rho = outline.radius_at(angle);
-                refine_ray(filtered, coarse.centre, angle, rho, &p.rays, &mut scratch)
+            .filter_map(|&ray| {
+                let rho = outline.radius_along(ray.unit);
+                refine_ray(filtered, coarse.centre, ray, rho, &p.rays, &mut scratch)
             })
             .collect();
         if (edges.len() as f64) < p.min_valid_share * ray_count as f64 {
@@ -296,7 +300,7 @@ impl BoreDetector {
         let mut coverage = 1.0;
         let (points, fit, profile) = match p.edge_mode {
             EdgeMode::SubPixel => {
-                let arcs = self.clean_edges(coarse.centre, &angles, &edges)?;
+                let arcs = self.clean_edges(coarse.centre, &rays, &edges)?;
                 bridges = arcs.bridges;
                 coverage = arcs.points.len() as f64 / ray_count as f64;
                 let fit = fit_geometric(&arcs.points).ok()?;
@@ -350,7 +354,7 @@ impl BoreDetector {
     fn clean_edges(
         &self,
         origin: [f64; 2],
-        angles: &[f64],
+        rays: &[RayDir],
         edges: &[EdgePoint],
     ) -> Option<CleanArcs> {
         let p = &self.params;
@@ -359,29 +363,29 @@ impl BoreDetector {
             .filter(|e| e.flank_departure() <= p.max_flank_departure)
             .collect();
         let stride = flat.len().div_ceil(MAX_SERIES_POINTS).max(1);
-        let flat_angles: Vec<f64> = flat.iter().step_by(stride).map(|e| e.angle_rad).collect();
+        let flat_units: Vec<[f64; 2]> = flat.iter().step_by(stride).map(|e| e.ray.unit).collect();
         let flat_radii: Vec<f64> = flat.iter().step_by(stride).map(|e| e.radius_px).collect();
         let series =
-            fit_series_robust(&flat_angles, &flat_radii, EDGE_ORDER, p.edge_scale_floor_px)?;
+            fit_series_robust(&flat_units, &flat_radii, EDGE_ORDER, p.edge_scale_floor_px)?;
         let limit = p.outlier_scales * series.scale;
         let mut points = Vec::with_capacity(flat.len());
         let mut kept_angles = Vec::with_capacity(flat.len());
         for e in &flat {
-            if (e.radius_px - series.radius_at(e.angle_rad)).abs() <= limit {
+            if (e.radius_px - series.radius_along(e.ray.unit)).abs() <= limit {
                 points.push(e.point_px);
-                kept_angles.push(e.angle_rad);
+                kept_angles.push(e.ray.angle_rad);
             }
         }
-        if (points.len() as f64) < p.min_clean_share * angles.len() as f64 {
+        if (points.len() as f64) < p.min_clean_share * rays.len() as f64 {
             return None;
         }
         // Both lists are in ray order: walk them together.
         let mut bridges = Vec::new();
         let mut next = kept_angles.iter().peekable();
-        for &angle in angles {
-            if next.next_if(|&&a| a == angle).is_none() {
-                let (s, c) = angle.sin_cos();
-                let r = series.radius_at(angle);
+        for ray in rays {
+            if next.next_if(|&&a| a == ray.angle_rad).is_none() {
+                let [c, s] = ray.unit;
+                let r = series.radius_along(ray.unit);
                 bridges.push([origin[0] + r * c, origin[1] + r * s]);
             }
         }
@@ -403,7 +407,7 @@ impl BoreDetector {
         let mut widths = Vec::with_capacity(sampled.len());
         for e in &sampled {
             let deep = e.inner_level + 0.35 * (e.outer_level - e.inner_level);
-            let (s, c) = e.angle_rad.sin_cos();
+            let [c, s] = e.ray.unit;
             let limit = p.max_outer_ratio * e.radius_px;
             let mut t = e.radius_px + 2.0;
             while t <= limit {

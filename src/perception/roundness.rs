@@ -31,7 +31,8 @@ pub struct RoundnessProfile {
 impl RoundnessProfile {
     /// Filtered radius in direction `theta_rad`.
     pub fn radius_at(&self, theta_rad: f64) -> f64 {
-        series_at(self.mean_radius, &self.harmonics, theta_rad)
+        let (s, c) = theta_rad.sin_cos();
+        series_along(self.mean_radius, &self.harmonics, [c, s])
     }
 
     /// One-sigma uncertainty of `roundness` from edge noise: the profile's value at a point has
@@ -53,9 +54,10 @@ impl RoundnessProfile {
     }
 }
 
-/// `mean + sum_k a_k cos k theta + b_k sin k theta` for `k = 1..=harmonics.len()`.
-fn series_at(mean: f64, harmonics: &[(f64, f64)], theta_rad: f64) -> f64 {
-    let (s1, c1) = theta_rad.sin_cos();
+/// `mean + sum_k a_k cos k theta + b_k sin k theta` for `k = 1..=harmonics.len()`, given
+/// `unit = [cos theta, sin theta]`.
+fn series_along(mean: f64, harmonics: &[(f64, f64)], unit: [f64; 2]) -> f64 {
+    let [c1, s1] = unit;
     let (mut c, mut s) = (1.0f64, 0.0f64);
     let mut r = mean;
     for &(a, b) in harmonics {
@@ -84,7 +86,13 @@ pub struct RobustSeries {
 impl RobustSeries {
     /// The series in direction `theta_rad`.
     pub fn radius_at(&self, theta_rad: f64) -> f64 {
-        series_at(self.mean, &self.harmonics, theta_rad)
+        let (s, c) = theta_rad.sin_cos();
+        self.radius_along([c, s])
+    }
+
+    /// The series in the direction `unit = [cos theta, sin theta]`.
+    pub fn radius_along(&self, unit: [f64; 2]) -> f64 {
+        series_along(self.mean, &self.harmonics, unit)
     }
 }
 
@@ -97,30 +105,29 @@ pub const MAX_ROBUST_ORDER: usize = 4;
 /// Parameters of a series of [`MAX_ROBUST_ORDER`].
 const ROBUST_PARAMS: usize = 2 * MAX_ROBUST_ORDER + 1;
 
-/// Fits `r(theta) = mean + sum_{k <= order} a_k cos k theta + b_k sin k theta` to `(angles_rad,
-/// radii)` by iteratively reweighted least squares with Tukey's biweight: points further than
+/// Fits `r(theta) = mean + sum_{k <= order} a_k cos k theta + b_k sin k theta` to `(units,
+/// radii)`, the directions given as `[cos theta, sin theta]`, by iteratively reweighted least squares with Tukey's biweight: points further than
 /// `TUKEY_C` robust scales from the series get no weight, so an arc of displaced points (up to
 /// about a third of them) does not pull the series. Starts from the median radius, so the
 /// outliers never enter an unweighted first fit. `scale_floor` bounds the robust scale from
 /// below (the residuals of exact data would otherwise reject everything). `None` for an `order`
 /// above [`MAX_ROBUST_ORDER`], with fewer than `2 order + 2` points or a singular system.
 pub fn fit_series_robust(
-    angles_rad: &[f64],
+    units: &[[f64; 2]],
     radii: &[f64],
     order: usize,
     scale_floor: f64,
 ) -> Option<RobustSeries> {
-    let n = radii.len().min(angles_rad.len());
+    let n = radii.len().min(units.len());
     let params = 2 * order + 1;
     if order > MAX_ROBUST_ORDER || n <= params {
         return None;
     }
     // Basis rows: 1, cos theta, sin theta, ..., cos K theta, sin K theta (zero-padded).
-    let basis: Vec<[f64; ROBUST_PARAMS]> = angles_rad[..n]
+    let basis: Vec<[f64; ROBUST_PARAMS]> = units[..n]
         .iter()
-        .map(|&theta| {
+        .map(|&[c1, s1]| {
             let mut row = [0.0; ROBUST_PARAMS];
-            let (s1, c1) = theta.sin_cos();
             let (mut c, mut s) = (1.0f64, 0.0f64);
             row[0] = 1.0;
             for k in 0..order {
@@ -383,7 +390,8 @@ mod tests {
                 (t, 50.0 + 0.8 * (3.0 * t + 0.4).cos() + displaced)
             })
             .unzip();
-        let Some(series) = fit_series_robust(&angles, &radii, 4, 0.01) else {
+        let units: Vec<[f64; 2]> = angles.iter().map(|t| [t.cos(), t.sin()]).collect();
+        let Some(series) = fit_series_robust(&units, &radii, 4, 0.01) else {
             panic!("no fit");
         };
         assert!((series.mean - 50.0).abs() < 1e-3, "{series:?}");

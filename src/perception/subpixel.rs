@@ -50,13 +50,34 @@ impl Default for RayParams {
     }
 }
 
+/// A ray's direction: its angle and unit vector `[cos, sin]`, computed once per ray and shared
+/// by every stage that walks along it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RayDir {
+    /// Angle from the x axis (towards y), radians.
+    pub angle_rad: f64,
+    /// `[cos, sin]` of the angle.
+    pub unit: [f64; 2],
+}
+
+impl RayDir {
+    /// The direction at `angle_rad`.
+    pub fn new(angle_rad: f64) -> Self {
+        let (s, c) = angle_rad.sin_cos();
+        Self {
+            angle_rad,
+            unit: [c, s],
+        }
+    }
+}
+
 /// One refined edge point and the levels either side of it.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct EdgePoint {
     /// Edge position `[x, y]`, pixels.
     pub point_px: [f64; 2],
     /// Direction of the ray.
-    pub angle_rad: f64,
+    pub ray: RayDir,
     /// Distance from the ray's origin to the edge.
     pub radius_px: f64,
     /// Mean level inside (bore side), `level_near_px..level_far_px` from the edge.
@@ -111,43 +132,81 @@ pub fn sample_ray(
     out: &mut Vec<f64>,
 ) {
     out.clear();
-    let (w, h) = (image.width() as usize, image.height() as usize);
-    let at = |t: f64| [centre[0] + t * dir[0], centre[1] + t * dir[1]];
-    // Both ends strictly inside the last pixel row and column: so is the whole segment, and every
-    // sample has its four neighbours without clamping.
-    let inside =
-        |[x, y]: [f64; 2]| x >= 0.0 && y >= 0.0 && x < (w as f64 - 1.0) && y < (h as f64 - 1.0);
-    let last = from + step * count.saturating_sub(1) as f64;
-    if count == 0 || !(inside(at(from)) && inside(at(last))) {
-        out.extend((0..count).map(|i| {
-            let [x, y] = at(from + step * i as f64);
-            sample_bilinear(image, x, y)
-        }));
-        return;
-    }
-    let raw = image.as_raw();
     out.resize(count, 0.0);
-    for (i, o) in out.iter_mut().enumerate() {
-        let [x, y] = at(from + step * i as f64);
-        let (x0, y0) = (x as usize, y as usize);
-        let (fx, fy) = (x - x0 as f64, y - y0 as f64);
-        let index = y0 * w + x0;
-        let (Some(&[p00, p01]), Some(&[p10, p11])) = (
-            raw.get(index..index + 2).and_then(|q| q.first_chunk::<2>()),
-            raw.get(index + w..index + w + 2)
-                .and_then(|q| q.first_chunk::<2>()),
-        ) else {
-            continue;
+    let ray = RaySamples {
+        image,
+        centre,
+        dir,
+        from,
+        step,
+    };
+    ray.fill(0..count, out);
+}
+
+/// Where the samples of one ray lie: sample `i` is at `centre + (from + step i) dir`.
+struct RaySamples<'a> {
+    image: &'a GrayImage,
+    centre: [f64; 2],
+    dir: [f64; 2],
+    from: f64,
+    step: f64,
+}
+
+impl RaySamples<'_> {
+    /// Position of sample `i`.
+    #[inline]
+    fn at(&self, i: usize) -> [f64; 2] {
+        let t = self.from + self.step * i as f64;
+        [
+            self.centre[0] + t * self.dir[0],
+            self.centre[1] + t * self.dir[1],
+        ]
+    }
+
+    /// Writes samples `range` into `out[range]` (bilinear, as [`sample_bilinear`]). Each sample
+    /// depends on its index alone, so filling a profile piecewise gives the same bytes as at once.
+    fn fill(&self, range: std::ops::Range<usize>, out: &mut [f64]) {
+        let Some(out) = out.get_mut(range.clone()) else {
+            return;
         };
-        let (p00, p01, p10, p11) = (
-            f64::from(p00),
-            f64::from(p01),
-            f64::from(p10),
-            f64::from(p11),
-        );
-        let top = p00 + fx * (p01 - p00);
-        let bottom = p10 + fx * (p11 - p10);
-        *o = top + fy * (bottom - top);
+        if range.is_empty() {
+            return;
+        }
+        let (w, h) = (self.image.width() as usize, self.image.height() as usize);
+        // Both ends strictly inside the last pixel row and column: so is the whole segment, and
+        // every sample has its four neighbours without clamping.
+        let inside =
+            |[x, y]: [f64; 2]| x >= 0.0 && y >= 0.0 && x < (w as f64 - 1.0) && y < (h as f64 - 1.0);
+        if !(inside(self.at(range.start)) && inside(self.at(range.end - 1))) {
+            for (o, i) in out.iter_mut().zip(range) {
+                let [x, y] = self.at(i);
+                *o = sample_bilinear(self.image, x, y);
+            }
+            return;
+        }
+        let raw = self.image.as_raw();
+        for (o, i) in out.iter_mut().zip(range) {
+            let [x, y] = self.at(i);
+            let (x0, y0) = (x as usize, y as usize);
+            let (fx, fy) = (x - x0 as f64, y - y0 as f64);
+            let index = y0 * w + x0;
+            let (Some(&[p00, p01]), Some(&[p10, p11])) = (
+                raw.get(index..index + 2).and_then(|q| q.first_chunk::<2>()),
+                raw.get(index + w..index + w + 2)
+                    .and_then(|q| q.first_chunk::<2>()),
+            ) else {
+                continue;
+            };
+            let (p00, p01, p10, p11) = (
+                f64::from(p00),
+                f64::from(p01),
+                f64::from(p10),
+                f64::from(p11),
+            );
+            let top = p00 + fx * (p01 - p00);
+            let bottom = p10 + fx * (p11 - p10);
+            *o = top + fy * (bottom - top);
+        }
     }
 }
 
@@ -173,7 +232,7 @@ fn window_mean(profile: &[f64], from: isize, to: isize) -> f64 {
 pub fn refine_ray(
     image: &GrayImage,
     centre: [f64; 2],
-    angle_rad: f64,
+    ray: RayDir,
     expected_radius_px: f64,
     params: &RayParams,
     scratch: &mut Vec<f64>,
@@ -181,7 +240,7 @@ pub fn refine_ray(
     if image.width() == 0 || image.height() == 0 || params.step_px <= 0.0 {
         return None;
     }
-    let (s, c) = angle_rad.sin_cos();
+    let [c, s] = ray.unit;
     let step = params.step_px;
     let steps_of = |d: f64| (d / step).round() as isize;
     let (search, near, far) = (
@@ -198,8 +257,15 @@ pub fn refine_ray(
     let t0 = (expected_radius_px - reach as f64 * step).max(0.0);
     let centre_index = ((expected_radius_px - t0) / step).round() as isize;
     let count = (centre_index + reach + 1) as usize;
-    sample_ray(image, centre, [c, s], t0, step, count, scratch);
-    let profile = scratch.as_slice();
+    let samples = RaySamples {
+        image,
+        centre,
+        dir: ray.unit,
+        from: t0,
+        step,
+    };
+    scratch.clear();
+    scratch.resize(count, 0.0);
     let last = count as isize - 1;
     // Steepest rise over one pixel (two steps apart at the default spacing).
     let span = steps_of(0.5).max(1);
@@ -207,13 +273,29 @@ pub fn refine_ray(
         (centre_index - search).max(span),
         (centre_index + search).min(last - span),
     );
+    if low > high {
+        return None;
+    }
+    // Only the samples the search and then the windows about the chosen step read are taken:
+    // first the searched stretch, then what the windows need beyond it.
+    let searched = (low - span) as usize..(high + span + 1) as usize;
+    samples.fill(searched.clone(), scratch);
     let mut best: Option<(isize, f64)> = None;
     for j in low..=high {
-        let rise = profile[(j + span) as usize] - profile[(j - span) as usize];
+        let rise = scratch[(j + span) as usize] - scratch[(j - span) as usize];
         if rise > 0.0 && best.is_none_or(|(_, b)| rise > b) {
             best = Some((j, rise));
         }
     }
+    let (j, _) = best?;
+    let wing = far.max(near).max(rim_near).max(half);
+    let (first, end) = (
+        (j - wing).max(0) as usize,
+        (j + wing).min(last) as usize + 1,
+    );
+    samples.fill(first..searched.start.max(first), scratch);
+    samples.fill(searched.end.min(end)..end, scratch);
+    let profile = scratch.as_slice();
     let (j, _) = best?;
     let inner_level = window_mean(profile, j - far, j - near);
     let outer_level = window_mean(profile, j + near, j + far);
@@ -241,7 +323,7 @@ pub fn refine_ray(
     }
     Some(EdgePoint {
         point_px: [centre[0] + t * c, centre[1] + t * s],
-        angle_rad,
+        ray,
         radius_px: t,
         inner_level,
         outer_level,
@@ -334,7 +416,7 @@ mod tests {
             let Some(edge) = refine_ray(
                 &image,
                 centre,
-                angle,
+                RayDir::new(angle),
                 r + 1.0,
                 &RayParams::default(),
                 &mut Vec::new(),
@@ -374,7 +456,7 @@ mod tests {
             let Some(edge) = refine_ray(
                 &image,
                 [cx, cy],
-                angle,
+                RayDir::new(angle),
                 r + 1.5,
                 &RayParams::default(),
                 &mut Vec::new(),
@@ -417,7 +499,7 @@ mod tests {
             refine_ray(
                 &image,
                 [25.0, 25.0],
-                0.0,
+                RayDir::new(0.0),
                 10.0,
                 &RayParams::default(),
                 &mut Vec::new()
