@@ -165,11 +165,14 @@ pub fn fit_series_robust(
                 continue;
             }
             let w = (1.0 - u * u).powi(2);
-            for a in 0..params {
+            // Over the whole zero-padded row with fixed bounds, so the compiler unrolls and
+            // vectorises it; only the lower triangle of the used orders is read below, and each
+            // of its entries sums the same products in the same order as a triangular loop would.
+            for (a, (normal_row, rhs_a)) in normal.iter_mut().zip(&mut rhs).enumerate() {
                 let wa = w * row[a];
-                rhs[a] += wa * r;
-                for b in 0..=a {
-                    normal[a][b] += wa * row[b];
+                *rhs_a += wa * r;
+                for (n, &rb) in normal_row.iter_mut().zip(row) {
+                    *n += wa * rb;
                 }
             }
         }
