@@ -579,6 +579,47 @@ mod tests {
     }
 
     #[test]
+    fn avx2_ray_samples_have_the_same_bits_as_the_portable_ones() {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            let mut rng = crate::rng::SimRng::new(7);
+            let (w, h) = (203u32, 157u32);
+            let data: Vec<u8> = (0..w * h).map(|_| (rng.next_u64() % 256) as u8).collect();
+            let image = GrayImage::from_raw(w, h, data).unwrap_or_else(|| GrayImage::new(1, 1));
+            let (mut portable, mut avx2) = (Vec::new(), Vec::new());
+            let mut compared = 0;
+            for _ in 0..2000 {
+                let centre = [rng.range(0.0, f64::from(w)), rng.range(0.0, f64::from(h))];
+                let angle = rng.range(0.0, std::f64::consts::TAU);
+                let samples = RaySamples {
+                    image: &image,
+                    centre,
+                    dir: [angle.cos(), angle.sin()],
+                    from: rng.range(0.0, 30.0),
+                    step: rng.range(0.1, 1.0),
+                };
+                let first = (rng.next_u64() % 8) as usize;
+                let count = 1 + (rng.next_u64() % 40) as usize;
+                let inside = |[x, y]: [f64; 2]| {
+                    x >= 0.0 && y >= 0.0 && x < f64::from(w - 1) && y < f64::from(h - 1)
+                };
+                if !(inside(samples.at(first)) && inside(samples.at(first + count - 1))) {
+                    continue;
+                }
+                portable.resize(count, 0.0);
+                avx2.resize(count, 0.0);
+                samples.fill_inside(first, &mut portable);
+                // SAFETY: the CPU has AVX2 (checked above).
+                unsafe { samples.fill_inside_avx2(first, &mut avx2) };
+                let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                assert_eq!(bits(&portable), bits(&avx2));
+                compared += 1;
+            }
+            assert!(compared > 200, "only {compared} rays inside");
+        }
+    }
+
+    #[test]
     fn a_flat_ray_has_no_edge() {
         let image = GrayImage::from_pixel(50, 50, image::Luma([100]));
         assert!(
