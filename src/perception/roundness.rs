@@ -123,19 +123,33 @@ pub fn fit_series_robust(
     if order > MAX_ROBUST_ORDER || n <= params {
         return None;
     }
-    // Basis rows: 1, cos theta, sin theta, ..., cos K theta, sin K theta (zero-padded).
-    let basis: Vec<[f64; ROBUST_PARAMS]> = units[..n]
+    // cos m theta and sin m theta up to twice the order, for the normal equations (see
+    // `harmonic_sums`), and the basis rows 1, cos theta, sin theta, ..., cos K theta, sin K theta
+    // (zero-padded) taken from them.
+    let doubled: Vec<HarmonicRow> = units[..n]
         .iter()
         .map(|&[c1, s1]| {
-            let mut row = [0.0; ROBUST_PARAMS];
+            let mut row = [[0.0; DOUBLE_HARMONICS]; 2];
             let (mut c, mut s) = (1.0f64, 0.0f64);
-            row[0] = 1.0;
-            for k in 0..order {
+            row[0][0] = 1.0;
+            for m in 1..=2 * order {
                 let c_next = c * c1 - s * s1;
                 s = s * c1 + c * s1;
                 c = c_next;
-                row[1 + 2 * k] = c;
-                row[2 + 2 * k] = s;
+                row[0][m] = c;
+                row[1][m] = s;
+            }
+            row
+        })
+        .collect();
+    let basis: Vec<[f64; ROBUST_PARAMS]> = doubled
+        .iter()
+        .map(|[c, s]| {
+            let mut row = [0.0; ROBUST_PARAMS];
+            row[0] = 1.0;
+            for k in 1..=order {
+                row[2 * k - 1] = c[k];
+                row[2 * k] = s[k];
             }
             row
         })
@@ -157,29 +171,34 @@ pub fn fit_series_robust(
         work.extend(residuals.iter().map(|r| r.abs()));
         scale = (1.4826 * median_of(&mut work)).max(scale_floor);
         let cutoff = TUKEY_C * scale;
-        let mut normal = [[0.0; ROBUST_PARAMS]; ROBUST_PARAMS];
+        // The weighted sums of cos m theta and sin m theta give every entry of the normal
+        // matrix (products of harmonics are sums of harmonics): 17 sums a point, lane by lane,
+        // instead of 45 products.
+        let mut sums = [[0.0; DOUBLE_HARMONICS]; 2];
         let mut rhs = [0.0; ROBUST_PARAMS];
-        for ((row, &residual), &r) in basis.iter().zip(&residuals).zip(radii) {
+        for ((row, doubled_row), (&residual, &r)) in
+            basis.iter().zip(&doubled).zip(residuals.iter().zip(radii))
+        {
             let u = residual / cutoff;
             if u.abs() >= 1.0 {
                 continue;
             }
             let w = (1.0 - u * u).powi(2);
-            // Over the whole zero-padded row with fixed bounds, so the compiler unrolls and
-            // vectorises it; only the lower triangle of the used orders is read below, and each
-            // of its entries sums the same products in the same order as a triangular loop would.
-            for (a, (normal_row, rhs_a)) in normal.iter_mut().zip(&mut rhs).enumerate() {
-                let wa = w * row[a];
-                *rhs_a += wa * r;
-                for (n, &rb) in normal_row.iter_mut().zip(row) {
-                    *n += wa * rb;
+            for (sum_row, values) in sums.iter_mut().zip(doubled_row) {
+                for (sum, &v) in sum_row.iter_mut().zip(values) {
+                    *sum += w * v;
                 }
+            }
+            let wr = w * r;
+            for (h, &b) in rhs.iter_mut().zip(row) {
+                *h += wr * b;
             }
         }
         // Unused orders get an identity block and a zero right-hand side: zero coefficients.
         let mut system = nalgebra::SMatrix::<f64, ROBUST_PARAMS, ROBUST_PARAMS>::identity();
-        for (a, row) in normal.iter().enumerate().take(params) {
-            for (b, &value) in row.iter().enumerate().take(a + 1) {
+        for a in 0..params {
+            for b in 0..=a {
+                let value = normal_entry(&sums, a, b);
                 system[(a, b)] = value;
                 system[(b, a)] = value;
             }
@@ -208,6 +227,42 @@ pub fn fit_series_robust(
             .collect(),
         scale,
     })
+}
+
+/// Harmonics `m = 0..=2 MAX_ROBUST_ORDER` whose sums make up a robust fit's normal equations.
+const DOUBLE_HARMONICS: usize = 2 * MAX_ROBUST_ORDER + 1;
+
+/// `[cos m theta, sin m theta]` for `m < DOUBLE_HARMONICS` (zero past twice the fit's order).
+type HarmonicRow = [[f64; DOUBLE_HARMONICS]; 2];
+
+/// Entry `(a, b)` of the normal matrix of the basis `1, cos theta, sin theta, ..., cos K theta,
+/// sin K theta` from the weighted sums `sums = [sum w cos m theta, sum w sin m theta]`, by
+/// `cos j cos k = (cos (j-k) + cos (j+k)) / 2`, `sin j sin k = (cos (j-k) - cos (j+k)) / 2` and
+/// `cos j sin k = (sin (j+k) + sin (k-j)) / 2`.
+fn normal_entry(sums: &HarmonicRow, a: usize, b: usize) -> f64 {
+    // Basis function `a` as (is a cosine, harmonic); the constant is cos 0 theta.
+    let term = |a: usize| match a {
+        0 => (true, 0),
+        a if a % 2 == 1 => (true, a.div_ceil(2)),
+        a => (false, a / 2),
+    };
+    let ((cos_a, j), (cos_b, k)) = (term(a), term(b));
+    let [cos_sums, sin_sums] = sums;
+    // sum w sin (to - from) theta.
+    let sin_of_difference = |from: usize, to: usize| {
+        if to >= from {
+            sin_sums[to - from]
+        } else {
+            -sin_sums[from - to]
+        }
+    };
+    let (difference, sum) = (j.abs_diff(k), j + k);
+    0.5 * match (cos_a, cos_b) {
+        (true, true) => cos_sums[difference] + cos_sums[sum],
+        (false, false) => cos_sums[difference] - cos_sums[sum],
+        (true, false) => sin_sums[sum] + sin_of_difference(j, k),
+        (false, true) => sin_sums[sum] + sin_of_difference(k, j),
+    }
 }
 
 /// Most reweighting rounds of [`fit_series_robust`]; it usually settles in five or six.
