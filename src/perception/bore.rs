@@ -22,7 +22,7 @@
 //! 5. Circularity: filtered roundness at most `max_roundness_ratio` times the radius. A lying
 //!    bottle's capsule (and any dark band in it) is elongated and fails.
 
-use crate::perception::circle_fit::{CircleFit, fit_geometric, fit_kasa, raw_roundness};
+use crate::perception::circle_fit::{CircleFit, distance, fit_geometric, fit_kasa, raw_roundness};
 use crate::perception::contours::{BorderKind, Contour, find_contours};
 use crate::perception::error::PerceptionError;
 use crate::perception::filters::FilterMethod;
@@ -437,7 +437,7 @@ fn binned_radii(points: &[[f64; 2]], centre: [f64; 2], bins: usize, fallback: f6
         let (dx, dy) = (q[0] - centre[0], q[1] - centre[1]);
         let angle = dy.atan2(dx).rem_euclid(TAU);
         let bin = ((angle / TAU * bins as f64).round() as usize) % bins;
-        sum[bin] += dx.hypot(dy);
+        sum[bin] += distance(dx, dy);
         count[bin] += 1;
     }
     let filled: Vec<usize> = (0..bins).filter(|&i| count[i] > 0).collect();

@@ -7,6 +7,7 @@
 //! and `Rmax - Rmin` is taken on that series. Form errors below the cutoff (ellipse: 2 UPR and its
 //! harmonics, 2-/3-lobe bores) pass unchanged; pixel noise is averaged.
 
+use crate::perception::circle_fit::distance;
 use crate::perception::error::PerceptionError;
 use std::f64::consts::TAU;
 
@@ -297,7 +298,7 @@ pub fn filtered_roundness(
         .iter()
         .map(|p| {
             let (dx, dy) = (p[0] - centre[0], p[1] - centre[1]);
-            (dy.atan2(dx), dx.hypot(dy))
+            (dy.atan2(dx), distance(dx, dy))
         })
         .collect();
     polar.sort_by(|a, b| a.0.total_cmp(&b.0));
