@@ -130,17 +130,22 @@ pub fn fit_series_robust(
     let doubled: Vec<HarmonicRow> = units[..n]
         .iter()
         .map(|&[c1, s1]| {
-            let mut row = [[0.0; DOUBLE_HARMONICS]; 2];
+            let [mut cos_row, mut sin_row] = [[0.0; DOUBLE_HARMONICS]; 2];
             let (mut c, mut s) = (1.0f64, 0.0f64);
-            row[0][0] = 1.0;
-            for m in 1..=2 * order {
+            cos_row[0] = 1.0;
+            for (cos_m, sin_m) in cos_row
+                .iter_mut()
+                .zip(&mut sin_row)
+                .take(2 * order + 1)
+                .skip(1)
+            {
                 let c_next = c * c1 - s * s1;
                 s = s * c1 + c * s1;
                 c = c_next;
-                row[0][m] = c;
-                row[1][m] = s;
+                *cos_m = c;
+                *sin_m = s;
             }
-            row
+            [cos_row, sin_row]
         })
         .collect();
     let basis: Vec<[f64; ROBUST_PARAMS]> = doubled
@@ -294,11 +299,19 @@ pub fn filtered_roundness(
             point_count: points.len(),
         });
     }
-    let mut polar: Vec<(f64, f64)> = points
+    // (angle, radius, [cos, sin] of the angle): the direction from the offsets themselves, which
+    // spares a sine and cosine a point.
+    let mut polar: Vec<(f64, f64, [f64; 2])> = points
         .iter()
         .map(|p| {
             let (dx, dy) = (p[0] - centre[0], p[1] - centre[1]);
-            (dy.atan2(dx), distance(dx, dy))
+            let r = distance(dx, dy);
+            let unit = if r > 0.0 {
+                [dx / r, dy / r]
+            } else {
+                [1.0, 0.0]
+            };
+            (dy.atan2(dx), r, unit)
         })
         .collect();
     polar.sort_by(|a, b| a.0.total_cmp(&b.0));
@@ -312,8 +325,7 @@ pub fn filtered_roundness(
         .collect();
     // cos(k theta_i), sin(k theta_i) for k = 1..=K, row by row.
     let mut basis = vec![(0.0f64, 0.0f64); n * k_max];
-    for (row, &(theta, _)) in basis.chunks_exact_mut(k_max.max(1)).zip(&polar) {
-        let (s1, c1) = theta.sin_cos();
+    for (row, &(_, _, [c1, s1])) in basis.chunks_exact_mut(k_max.max(1)).zip(&polar) {
         let (mut c, mut s) = (c1, s1);
         for cell in row.iter_mut() {
             *cell = (c, s);
@@ -338,7 +350,7 @@ pub fn filtered_roundness(
     for _ in 0..3 {
         let mut constant = 0.0;
         let mut sums = vec![(0.0f64, 0.0f64); k_max];
-        for (i, (&(_, r), &weight)) in polar.iter().zip(&weights).enumerate() {
+        for (i, (&(_, r, _), &weight)) in polar.iter().zip(&weights).enumerate() {
             let residual = weight * (r - series_at(mean_radius, &harmonics, i));
             constant += residual;
             for (sum, &(c, s)) in sums.iter_mut().zip(&basis[i * k_max..(i + 1) * k_max]) {
@@ -365,10 +377,18 @@ pub fn filtered_roundness(
     // Dense enough that the sampled extremes of a K-UPR series are within ~1e-3 of the true ones.
     let samples = 32 * (k_max + 1);
     let (mut r_min, mut r_max) = (f64::INFINITY, f64::NEG_INFINITY);
-    for j in 0..samples {
-        let r = profile.radius_at(TAU * j as f64 / samples as f64);
+    // Sample directions by rotating one step at a time (no sine and cosine per sample; the
+    // rounding this accumulates over a revolution is far below a micro-radian).
+    let (step_sin, step_cos) = (TAU / samples as f64).sin_cos();
+    let mut unit = [1.0f64, 0.0f64];
+    for _ in 0..samples {
+        let r = series_along(profile.mean_radius, &profile.harmonics, unit);
         r_min = r_min.min(r);
         r_max = r_max.max(r);
+        unit = [
+            unit[0] * step_cos - unit[1] * step_sin,
+            unit[1] * step_cos + unit[0] * step_sin,
+        ];
     }
     profile.roundness = r_max - r_min;
     Ok(profile)
