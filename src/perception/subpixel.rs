@@ -196,6 +196,8 @@ impl RaySamples<'_> {
         }
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2")
+            && w >= 2
+            && h >= 2
             && i32::try_from(self.image.as_raw().len()).is_ok()
         {
             // SAFETY: the function only requires AVX2, which the CPU was just found to have.
@@ -235,7 +237,8 @@ impl RaySamples<'_> {
 
     /// [`Self::fill_inside`], four samples at a time with AVX2: the same IEEE operations in the
     /// same order on each lane (Rust never fuses a multiply and an add), so the same bits. The
-    /// image must have fewer than 2^31 bytes (indices are `i32` lanes).
+    /// image must be at least 2x2 pixels (or the clamped reads below could leave it) and have
+    /// fewer than 2^31 bytes (indices are `i32` lanes); [`Self::fill`] checks both.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     fn fill_inside_avx2(&self, first: usize, out: &mut [f64]) {
