@@ -22,7 +22,7 @@
 //! 5. Circularity: filtered roundness at most `max_roundness_ratio` times the radius. A lying
 //!    bottle's capsule (and any dark band in it) is elongated and fails.
 
-use crate::perception::circle_fit::{CircleFit, fit_geometric, fit_kasa, raw_roundness};
+use crate::perception::circle_fit::{CircleFit, distance, fit_geometric, fit_kasa, raw_roundness};
 use crate::perception::contours::{BorderKind, Contour, find_contours};
 use crate::perception::error::PerceptionError;
 use crate::perception::filters::FilterMethod;
@@ -30,7 +30,7 @@ use crate::perception::roundness::{
     DEFAULT_MAX_UPR, RoundnessProfile, filtered_roundness, filtered_roundness_bridged,
     fit_series_robust, median_of,
 };
-use crate::perception::subpixel::{EdgePoint, RayParams, refine_ray, sample_bilinear};
+use crate::perception::subpixel::{EdgePoint, RayDir, RayParams, refine_ray, sample_bilinear};
 use crate::perception::threshold::ThresholdMethod;
 use image::GrayImage;
 use std::f64::consts::TAU;
@@ -267,14 +267,18 @@ impl BoreDetector {
         }
         let ray_count = ((TAU * coarse.radius).round() as usize).clamp(180, 1024);
         let coarse_radii = binned_radii(&border, coarse.centre, ray_count, coarse.radius);
-        let angles: Vec<f64> = (0..ray_count)
-            .map(|i| TAU * i as f64 / ray_count as f64)
+        let rays: Vec<RayDir> = (0..ray_count)
+            .map(|i| RayDir::new(TAU * i as f64 / ray_count as f64))
             .collect();
         // Where the threshold cut a stain or dirt out of the rim, the hole border bulges around
         // it; a robust low-order outline of the border ignores such bulges.
         let stride = ray_count.div_ceil(MAX_SERIES_POINTS);
         let outline = fit_series_robust(
-            &angles.iter().step_by(stride).copied().collect::<Vec<_>>(),
+            &rays
+                .iter()
+                .step_by(stride)
+                .map(|r| r.unit)
+                .collect::<Vec<_>>(),
             &coarse_radii
                 .iter()
                 .step_by(stride)
@@ -285,11 +289,11 @@ impl BoreDetector {
         )?;
 
         let mut scratch = Vec::new();
-        let edges: Vec<EdgePoint> = angles
+        let edges: Vec<EdgePoint> = rays
             .iter()
-            .filter_map(|&angle| {
-                let rho = outline.radius_at(angle);
-                refine_ray(filtered, coarse.centre, angle, rho, &p.rays, &mut scratch)
+            .filter_map(|&ray| {
+                let rho = outline.radius_along(ray.unit);
+                refine_ray(filtered, coarse.centre, ray, rho, &p.rays, &mut scratch)
             })
             .collect();
         if (edges.len() as f64) < p.min_valid_share * ray_count as f64 {
@@ -312,7 +316,7 @@ impl BoreDetector {
         let mut coverage = 1.0;
         let (points, fit, profile) = match p.edge_mode {
             EdgeMode::SubPixel => {
-                let arcs = self.clean_edges(coarse.centre, &angles, &edges)?;
+                let arcs = self.clean_edges(coarse.centre, &rays, &edges)?;
                 bridges = arcs.bridges;
                 coverage = arcs.points.len() as f64 / ray_count as f64;
                 let fit = fit_geometric(&arcs.points).ok()?;
@@ -366,7 +370,7 @@ impl BoreDetector {
     fn clean_edges(
         &self,
         origin: [f64; 2],
-        angles: &[f64],
+        rays: &[RayDir],
         edges: &[EdgePoint],
     ) -> Option<CleanArcs> {
         let p = &self.params;
@@ -375,29 +379,29 @@ impl BoreDetector {
             .filter(|e| e.flank_departure() <= p.max_flank_departure)
             .collect();
         let stride = flat.len().div_ceil(MAX_SERIES_POINTS).max(1);
-        let flat_angles: Vec<f64> = flat.iter().step_by(stride).map(|e| e.angle_rad).collect();
+        let flat_units: Vec<[f64; 2]> = flat.iter().step_by(stride).map(|e| e.ray.unit).collect();
         let flat_radii: Vec<f64> = flat.iter().step_by(stride).map(|e| e.radius_px).collect();
         let series =
-            fit_series_robust(&flat_angles, &flat_radii, EDGE_ORDER, p.edge_scale_floor_px)?;
+            fit_series_robust(&flat_units, &flat_radii, EDGE_ORDER, p.edge_scale_floor_px)?;
         let limit = p.outlier_scales * series.scale;
         let mut points = Vec::with_capacity(flat.len());
         let mut kept_angles = Vec::with_capacity(flat.len());
         for e in &flat {
-            if (e.radius_px - series.radius_at(e.angle_rad)).abs() <= limit {
+            if (e.radius_px - series.radius_along(e.ray.unit)).abs() <= limit {
                 points.push(e.point_px);
-                kept_angles.push(e.angle_rad);
+                kept_angles.push(e.ray.angle_rad);
             }
         }
-        if (points.len() as f64) < p.min_clean_share * angles.len() as f64 {
+        if (points.len() as f64) < p.min_clean_share * rays.len() as f64 {
             return None;
         }
         // Both lists are in ray order: walk them together.
         let mut bridges = Vec::new();
         let mut next = kept_angles.iter().peekable();
-        for &angle in angles {
-            if next.next_if(|&&a| a == angle).is_none() {
-                let (s, c) = angle.sin_cos();
-                let r = series.radius_at(angle);
+        for ray in rays {
+            if next.next_if(|&&a| a == ray.angle_rad).is_none() {
+                let [c, s] = ray.unit;
+                let r = series.radius_along(ray.unit);
                 bridges.push([origin[0] + r * c, origin[1] + r * s]);
             }
         }
@@ -419,7 +423,7 @@ impl BoreDetector {
         let mut widths = Vec::with_capacity(sampled.len());
         for e in &sampled {
             let deep = e.inner_level + 0.35 * (e.outer_level - e.inner_level);
-            let (s, c) = e.angle_rad.sin_cos();
+            let [c, s] = e.ray.unit;
             let limit = p.max_outer_ratio * e.radius_px;
             let mut t = e.radius_px + 2.0;
             while t <= limit {
@@ -449,7 +453,7 @@ fn binned_radii(points: &[[f64; 2]], centre: [f64; 2], bins: usize, fallback: f6
         let (dx, dy) = (q[0] - centre[0], q[1] - centre[1]);
         let angle = dy.atan2(dx).rem_euclid(TAU);
         let bin = ((angle / TAU * bins as f64).round() as usize) % bins;
-        sum[bin] += dx.hypot(dy);
+        sum[bin] += distance(dx, dy);
         count[bin] += 1;
     }
     let filled: Vec<usize> = (0..bins).filter(|&i| count[i] > 0).collect();
