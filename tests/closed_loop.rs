@@ -1,6 +1,8 @@
-//! The closed loop's geometry from the camera: bottle poses fitted to their boxes and bores
-//! measured inside their boxes agree with the rendered truth. The boxes here are the renderer's
-//! true silhouette boxes, so these tests check the loop's geometry apart from the detector.
+//! The closed loop: camera perception (render, detector, metrology) drives the smoke scenario to
+//! the right bins; and, apart from the detector (on the renderer's true silhouette boxes), bottle
+//! poses fitted to their boxes and bores measured inside their boxes agree with the truth.
+
+mod common;
 
 use std::path::Path;
 
@@ -153,4 +155,34 @@ fn bores_measured_inside_their_boxes_locate_and_size_the_part() {
         }
     }
     eprintln!("worst centre {worst_centre_mm:.3} mm, worst diameter {worst_diameter_mm:.3} mm");
+}
+
+/// `twincell run` in camera mode (the default) sorts every smoke trial into the right bin from
+/// rendered images alone, never touches the bottle, and measures the bores to hundredths of a
+/// millimetre.
+#[test]
+fn camera_mode_sorts_the_smoke_scenario() {
+    let out = std::env::temp_dir().join(format!("twincell-closed-loop-{}", std::process::id()));
+    let scenario = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/smoke.toml");
+    let (code, stdout, stderr) = common::twincell(&[
+        "run",
+        &scenario.to_string_lossy(),
+        "--out",
+        &out.to_string_lossy(),
+        "--jobs",
+        "2",
+        "--json",
+    ]);
+    assert_eq!(code, 0, "{stderr}");
+    let report: serde_json::Value = match serde_json::from_str(&stdout) {
+        Ok(v) => v,
+        Err(e) => panic!("report: {e}: {stdout}"),
+    };
+    assert_eq!(report["perception"], "camera");
+    assert_eq!(report["successes"], report["trials"], "{stdout}");
+    assert_eq!(report["distractor_picks"], 0);
+    assert_eq!(report["sorting"]["clear_cut_misjudged"], 0);
+    let roundness = report["metrology"]["roundness_error_mm"]["mean_mm"].as_f64();
+    assert!(roundness.is_some_and(|r| r < 0.05), "{stdout}");
+    let _ = std::fs::remove_dir_all(&out);
 }
