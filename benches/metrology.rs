@@ -1,14 +1,22 @@
 //! Bore metrology timings per frame, one thread, stage by stage (`cargo bench --bench metrology`).
 //!
 //! Also writes the frames it times (and a set of frames with truth sidecars for accuracy
-//! comparisons) under `target/metrology-frames/`, so `benches/opencv_metrology.py` times OpenCV on
-//! exactly the same images.
+//! comparisons) under `target/metrology-frames/`, then, in the same run, has
+//! `benches/opencv_metrology.py` time OpenCV's equivalent stages on exactly those images and
+//! prints the ratio of twincell's whole pipeline to OpenCV's median + adaptive threshold + Canny +
+//! findContours, both timed the same way (median of per-call times).
+//!
+//! The script runs under the first Python of: `$TWINCELL_OPENCV_PYTHON`, the virtual environment
+//! `~/.cache/twincell/venv` (`python3 -m venv ~/.cache/twincell/venv &&
+//! ~/.cache/twincell/venv/bin/pip install opencv-python-headless numpy`), `python3`. Without
+//! OpenCV the comparison is skipped with a note.
 
 use std::hint::black_box;
 use std::path::PathBuf;
-use std::time::Duration;
+use std::process::Command;
+use std::time::{Duration, Instant};
 
-use criterion::{Criterion, criterion_group, criterion_main};
+use criterion::{Criterion, criterion_group};
 use image::GrayImage;
 use twincell::perception::BoreDetector;
 use twincell::perception::contours::{find_contours, find_contours_imageproc};
@@ -97,5 +105,100 @@ fn metrology(c: &mut Criterion) {
     }
 }
 
+/// Median of `repeats` per-call times of `f`, ms: the statistic the OpenCV script uses.
+fn median_ms(repeats: usize, mut f: impl FnMut()) -> f64 {
+    let mut times: Vec<f64> = (0..repeats)
+        .map(|_| {
+            let start = Instant::now();
+            f();
+            start.elapsed().as_secs_f64() * 1e3
+        })
+        .collect();
+    times.sort_by(f64::total_cmp);
+    times[repeats / 2]
+}
+
+/// The Python that runs the OpenCV script (see the module documentation).
+fn python() -> PathBuf {
+    if let Some(path) = std::env::var_os("TWINCELL_OPENCV_PYTHON") {
+        return PathBuf::from(path);
+    }
+    let venv = std::env::var_os("HOME")
+        .map(|home| PathBuf::from(home).join(".cache/twincell/venv/bin/python"));
+    venv.filter(|p| p.exists())
+        .unwrap_or_else(|| PathBuf::from("python3"))
+}
+
+/// Times OpenCV on the frames just written and prints the whole-pipeline ratio per size.
+fn compare_with_opencv() {
+    let script = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("benches/opencv_metrology.py");
+    let python = python();
+    let output = match Command::new(&python).arg(&script).arg("--json").output() {
+        Ok(o) if o.status.success() => o,
+        Ok(o) => {
+            eprintln!(
+                "OpenCV comparison skipped: {} {} failed: {}",
+                python.display(),
+                script.display(),
+                String::from_utf8_lossy(&o.stderr).trim()
+            );
+            return;
+        }
+        Err(e) => {
+            eprintln!(
+                "OpenCV comparison skipped: cannot run {}: {e}",
+                python.display()
+            );
+            return;
+        }
+    };
+    let report: serde_json::Value = match serde_json::from_slice(&output.stdout) {
+        Ok(v) => v,
+        Err(e) => {
+            eprintln!("OpenCV comparison skipped: unreadable script output: {e}");
+            return;
+        }
+    };
+    let detector = BoreDetector::default();
+    println!(
+        "OpenCV {} (1 thread) vs twincell, median per-call ms",
+        report["opencv"]
+    );
+    for (width, height) in [(640u32, 480u32), (1280, 960)] {
+        let size = format!("{width}x{height}");
+        let path = frames_dir().join(&size).join("timed.png");
+        let Ok(image) = image::open(&path).map(|i| i.to_luma8()) else {
+            eprintln!("cannot read {}", path.display());
+            continue;
+        };
+        let ours = median_ms(200, || {
+            black_box(detector.detect(black_box(&image)).ok());
+        });
+        let timing = &report["sizes"][&size]["timing_ms"];
+        for (stage, ms) in timing.as_object().into_iter().flatten() {
+            println!(
+                "  {size} opencv {stage:<40} {:8.3}",
+                ms.as_f64().unwrap_or(f64::NAN)
+            );
+        }
+        let theirs = timing["chain_median_adaptive_canny_contours"]
+            .as_f64()
+            .unwrap_or(f64::NAN);
+        println!(
+            "  {size} twincell whole pipeline {ours:8.3} ms; ratio to OpenCV's chain {:.2}",
+            ours / theirs
+        );
+        println!(
+            "  {size} OpenCV classic pipeline accuracy: {}",
+            report["sizes"][&size]["classic_accuracy"]
+        );
+    }
+}
+
 criterion_group!(benches, metrology);
-criterion_main!(benches);
+
+fn main() {
+    benches();
+    Criterion::default().configure_from_args().final_summary();
+    compare_with_opencv();
+}

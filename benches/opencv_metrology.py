@@ -4,7 +4,8 @@ writes (target/metrology-frames/), one thread, and measures the roundness bias o
 pipeline (median -> adaptive threshold -> findContours -> least-squares circle on integer contour
 points -> Rmax - Rmin of those points) against the truth sidecars.
 
-Usage: pip install opencv-python-headless numpy; cargo bench --bench metrology;
+Usage: `cargo bench --bench metrology` runs it (see that file for the Python it picks); by hand:
+       pip install opencv-python-headless numpy; cargo bench --bench metrology;
        python3 benches/opencv_metrology.py [--json]
 """
 import glob

@@ -1,49 +1,88 @@
 //! The camera's cost per frame (`cargo bench --bench render`): render + readback of the
 //! pick-station scene at 640x480 and 1280x960 (4x MSAA), the scene's meshes already on the
-//! device as in a running trial; plus the sensor effects and a whole staged shot.
-//! Prints the adapter's name: without a GPU it is the software adapter (llvmpipe or lavapipe).
+//! device as in a running trial; plus the sensor effects, uploading a scene and a whole staged
+//! shot. Prints the adapter's name: without a GPU it is the software adapter (llvmpipe or
+//! lavapipe).
+//!
+//! Two groups: `render` measures wall-clock time; `render_cpu` measures the CPU time of the whole
+//! process (every thread: on a software adapter the rasteriser's threads do most of the work),
+//! which a machine shared with other jobs inflates far less than wall time. `render_cpu` also
+//! breaks a frame down: an empty frame (clear, MSAA resolve, readback) and the frame without
+//! MSAA.
 
 use std::hint::black_box;
 use std::path::Path;
 use std::time::Duration;
 
+use criterion::measurement::{Measurement, ValueFormatter, WallTime};
 use criterion::{Criterion, criterion_group, criterion_main};
-use twincell::render::{CameraRig, Renderer, RendererOptions, Shot};
+use image::RgbImage;
+use twincell::render::{CameraRig, Exposure, GpuScene, Renderer, RendererOptions, Scene, Shot};
 use twincell::scenario::Scenario;
 
-fn render_benches(c: &mut Criterion) {
+const RESOLUTIONS: [(u32, u32); 2] = [(640, 480), (1280, 960)];
+
+fn scenario() -> Scenario {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/paper_50.toml");
-    let scenario = match Scenario::load(&path) {
+    match Scenario::load(&path) {
         Ok(s) => s,
         Err(e) => panic!("{e}"),
+    }
+}
+
+fn renderer(msaa_samples: u32) -> Renderer {
+    let options = RendererOptions {
+        msaa_samples,
+        supersample: 1,
     };
-    let Ok(rig) = CameraRig::from_scenario(&scenario) else {
-        panic!("camera");
-    };
-    let mut renderer = match Renderer::new(RendererOptions::default()) {
+    let renderer = match Renderer::new(options) {
         Ok(r) => r,
         Err(e) => panic!("{e}"),
     };
-    let adapter = renderer.adapter_name();
-    eprintln!("render bench adapter: {adapter}");
+    eprintln!(
+        "render bench adapter: {} ({msaa_samples}x MSAA)",
+        renderer.adapter_name()
+    );
+    renderer
+}
+
+/// The bench shot (paper_50's first pick-station shot) at a resolution.
+fn staged(scenario: &Scenario, rig: &CameraRig, index: u64) -> Shot {
+    match Shot::pick_station(scenario, None, rig, &scenario.sensor, index) {
+        Ok(s) => s,
+        Err(e) => panic!("{e}"),
+    }
+}
+
+fn rig(scenario: &Scenario, width: u32, height: u32) -> CameraRig {
+    match CameraRig::from_scenario(scenario) {
+        Ok(rig) => rig.with_resolution(width, height),
+        Err(e) => panic!("{e}"),
+    }
+}
+
+/// One frame rendered and read back.
+fn frame(renderer: &mut Renderer, gpu: &GpuScene, exposure: &Exposure) -> RgbImage {
+    match renderer.render(gpu, exposure) {
+        Ok(image) => image,
+        Err(e) => panic!("{e}"),
+    }
+}
+
+fn render_benches(c: &mut Criterion) {
+    let scenario = scenario();
+    let mut renderer = renderer(4);
     let mut group = c.benchmark_group("render");
     group.measurement_time(Duration::from_secs(5));
-    for (w, h) in [(640, 480), (1280, 960)] {
-        let rig = rig.with_resolution(w, h);
-        let shot = match Shot::pick_station(&scenario, None, &rig, &scenario.sensor, 0) {
-            Ok(s) => s,
-            Err(e) => panic!("{e}"),
-        };
+    group.sample_size(30);
+    for (w, h) in RESOLUTIONS {
+        let rig = rig(&scenario, w, h);
+        let shot = staged(&scenario, &rig, 0);
         let gpu = renderer.upload(&shot.scene);
         group.bench_function(format!("render_readback_{w}x{h}"), |b| {
-            b.iter(|| match renderer.render(&gpu, &shot.exposure) {
-                Ok(image) => black_box(image),
-                Err(e) => panic!("{e}"),
-            })
+            b.iter(|| black_box(frame(&mut renderer, &gpu, &shot.exposure)))
         });
-        let Ok(clean) = renderer.render(&gpu, &shot.exposure) else {
-            panic!("render");
-        };
+        let clean = frame(&mut renderer, &gpu, &shot.exposure);
         group.bench_function(format!("sensor_effects_{w}x{h}"), |b| {
             b.iter(|| {
                 let mut image = clean.clone();
@@ -51,22 +90,90 @@ fn render_benches(c: &mut Criterion) {
                 black_box(image)
             })
         });
+        group.bench_function(format!("upload_{w}x{h}"), |b| {
+            b.iter(|| black_box(renderer.upload(&shot.scene)))
+        });
         group.bench_function(format!("staged_shot_{w}x{h}"), |b| {
-            b.iter(|| {
-                let shot = match Shot::pick_station(&scenario, None, &rig, &scenario.sensor, 1) {
-                    Ok(s) => s,
-                    Err(e) => panic!("{e}"),
-                };
-                match shot.render(&mut renderer) {
-                    Ok(image) => black_box(image),
-                    Err(e) => panic!("{e}"),
-                }
+            b.iter(|| match staged(&scenario, &rig, 1).render(&mut renderer) {
+                Ok(image) => black_box(image),
+                Err(e) => panic!("{e}"),
             })
         });
     }
     group.finish();
-    eprintln!("render bench adapter: {adapter}");
+}
+
+/// CPU time of the whole process (all its threads), from Linux's per-thread scheduler
+/// statistics, in nanoseconds.
+struct ProcessCpuTime;
+
+fn process_cpu_ns() -> u64 {
+    let tasks = match std::fs::read_dir("/proc/self/task") {
+        Ok(tasks) => tasks,
+        Err(e) => panic!("the CPU-time bench needs Linux: /proc/self/task: {e}"),
+    };
+    tasks
+        .flatten()
+        .filter_map(|task| std::fs::read_to_string(task.path().join("schedstat")).ok())
+        .filter_map(|stat| stat.split(' ').next()?.parse::<u64>().ok())
+        .sum()
+}
+
+impl Measurement for ProcessCpuTime {
+    type Intermediate = u64;
+    type Value = u64;
+
+    fn start(&self) -> u64 {
+        process_cpu_ns()
+    }
+    fn end(&self, start: u64) -> u64 {
+        process_cpu_ns().saturating_sub(start)
+    }
+    fn add(&self, a: &u64, b: &u64) -> u64 {
+        a + b
+    }
+    fn zero(&self) -> u64 {
+        0
+    }
+    fn to_f64(&self, value: &u64) -> f64 {
+        *value as f64
+    }
+    fn formatter(&self) -> &dyn ValueFormatter {
+        // Nanoseconds, shown as durations.
+        static WALL: WallTime = WallTime;
+        WALL.formatter()
+    }
+}
+
+fn cpu_benches(c: &mut Criterion<ProcessCpuTime>) {
+    let scenario = scenario();
+    let mut msaa = renderer(4);
+    let mut plain = renderer(1);
+    let empty = msaa.upload(&Scene::default());
+    let mut group = c.benchmark_group("render_cpu");
+    group.measurement_time(Duration::from_secs(5));
+    group.sample_size(30);
+    for (w, h) in RESOLUTIONS {
+        let shot = staged(&scenario, &rig(&scenario, w, h), 0);
+        let gpu = msaa.upload(&shot.scene);
+        group.bench_function(format!("render_readback_{w}x{h}"), |b| {
+            b.iter(|| black_box(frame(&mut msaa, &gpu, &shot.exposure)))
+        });
+        group.bench_function(format!("empty_frame_{w}x{h}"), |b| {
+            b.iter(|| black_box(frame(&mut msaa, &empty, &shot.exposure)))
+        });
+        let gpu = plain.upload(&shot.scene);
+        group.bench_function(format!("render_readback_no_msaa_{w}x{h}"), |b| {
+            b.iter(|| black_box(frame(&mut plain, &gpu, &shot.exposure)))
+        });
+    }
+    group.finish();
 }
 
 criterion_group!(benches, render_benches);
-criterion_main!(benches);
+criterion_group! {
+    name = cpu;
+    config = Criterion::default().with_measurement(ProcessCpuTime);
+    targets = cpu_benches
+}
+criterion_main!(benches, cpu);

@@ -26,12 +26,16 @@ enum Command {
     Demo(cli::demo::DemoArgs),
     /// Measure every bore (dark bore inside a bright rim) in images.
     Measure(cli::measure::MeasureArgs),
+    /// Run a scenario like `run` and report each stage's share of the wall time.
+    Bench(cli::bench::BenchArgs),
     /// Merge `twincell run --shard` outputs into one batch's trials, report and JUnit files.
     Merge(cli::merge::MergeArgs),
     /// Render the pick station with the cell's camera: PNG plus JSON ground truth.
     Render(cli::render::RenderArgs),
     /// Write a synthetic Ultralytics/YOLO dataset of pick-station images.
     Dataset(cli::render::DatasetArgs),
+    /// Find parts and bottles in images with the shipped detector network.
+    Detect(cli::detect::DetectArgs),
 }
 
 fn main() -> ExitCode {
@@ -48,10 +52,12 @@ fn main() -> ExitCode {
         Command::Ik(args) => cli::kinematics::run_ik(&args),
         Command::Demo(args) => cli::demo::run_demo(&args),
         Command::Run(args) => cli::run::run(&args),
+        Command::Bench(args) => cli::bench::run(&args),
         Command::Measure(args) => cli::measure::run(&args),
         Command::Merge(args) => cli::merge::run(&args),
         Command::Render(args) => cli::render::run_render(&args),
         Command::Dataset(args) => cli::render::run_dataset(&args),
+        Command::Detect(args) => cli::detect::run(&args),
     };
     match result {
         Ok(code) => code,

@@ -63,6 +63,7 @@ impl TrialRunner for FakeCell {
             true_roundness_mm,
             true_bore_diameter_mm: rng.range(18.0, 30.0),
             truly_acceptable,
+            clear_cut: true,
             correct_bin: true_type.to_owned(),
         });
         let measured_roundness = true_roundness_mm + 0.01 * rng.normal();
@@ -77,6 +78,7 @@ impl TrialRunner for FakeCell {
             measured_bore_diameter_mm: Some(20.0 + 0.02 * rng.normal()),
             accept: measured_roundness < 0.1,
             bin: true_type.to_owned(),
+            note: None,
         });
         record.placed_bin = success.then(|| true_type.to_owned());
         record.distractor_touched = rng.uniform() < 0.1;

@@ -386,14 +386,21 @@ fn a_bad_camera_setting_names_its_key() {
     }
 }
 
-/// Metrology on rendered images: bore diameter and roundness measured by `perception` (bore
-/// detector, then the calibration's on-plane fit) against the true bore, in mm.
-fn metrology_errors(sensor: &SensorSection, shots: u64) -> (Vec<f64>, Vec<f64>, usize) {
+/// Metrology on rendered images at `width_px` x `height_px`: bore diameter and roundness
+/// measured by `perception` (bore detector, then the calibration's on-plane fit) against the true
+/// bore, in mm; and the number of bores missed.
+fn metrology_errors(
+    sensor: &SensorSection,
+    shots: u64,
+    width_px: u32,
+    height_px: u32,
+) -> (Vec<f64>, Vec<f64>, usize) {
     use twincell::perception::roundness::DEFAULT_MAX_UPR;
     let scenario = smoke();
     let Ok(rig) = CameraRig::from_scenario(&scenario) else {
         panic!("camera");
     };
+    let rig = rig.with_resolution(width_px, height_px);
     let mut renderer = renderer(RendererOptions::default());
     let detector = BoreDetector::default();
     let (mut diameter, mut roundness, mut missed) = (Vec::new(), Vec::new(), 0);
@@ -412,6 +419,7 @@ fn metrology_errors(sensor: &SensorSection, shots: u64) -> (Vec<f64>, Vec<f64>, 
             (b.centre_px[0] - truth.centre_px[0]).hypot(b.centre_px[1] - truth.centre_px[1])
                 < 0.3 * truth.radius_px
         }) else {
+            eprintln!("shot {index}: bore missed");
             missed += 1;
             continue;
         };
@@ -419,6 +427,7 @@ fn metrology_errors(sensor: &SensorSection, shots: u64) -> (Vec<f64>, Vec<f64>, 
             .calibration
             .with_end_face_height(truth.end_face_height_m);
         let Ok(measured) = calibration.measure_on_plane(bore, DEFAULT_MAX_UPR) else {
+            eprintln!("shot {index}: no measurement on the plane");
             missed += 1;
             continue;
         };
@@ -438,27 +447,62 @@ fn mean_and_p95(v: &mut [f64]) -> (f64, f64) {
     (mean, p95)
 }
 
-/// On clean renders (no sensor effects) the metrology meets the goal: mean error at most
-/// 0.05 mm and 95th percentile at most 0.1 mm for both the bore diameter and its roundness.
+/// Measures `shots` renders and asserts no bore is missed and both the diameter and the
+/// roundness errors stay within `mean_mm` on average and `p95_mm` at the 95th percentile.
+fn assert_metrology(name: &str, sensor: &SensorSection, size: (u32, u32), limits: (f64, f64)) {
+    let (mean_mm, p95_mm) = limits;
+    let (mut diameter, mut roundness, missed) = metrology_errors(sensor, 60, size.0, size.1);
+    let (d_mean, d_p95) = mean_and_p95(&mut diameter);
+    let (r_mean, r_p95) = mean_and_p95(&mut roundness);
+    eprintln!(
+        "{name} {}x{}: {} bores measured, {missed} missed; diameter error mean {d_mean:.4} mm \
+         p95 {d_p95:.4} mm; roundness error mean {r_mean:.4} mm p95 {r_p95:.4} mm",
+        size.0,
+        size.1,
+        diameter.len()
+    );
+    assert_eq!(missed, 0, "{name}: missed bores");
+    assert!(
+        d_mean <= mean_mm && d_p95 <= p95_mm,
+        "{name}: diameter error mean {d_mean} p95 {d_p95} mm"
+    );
+    assert!(
+        r_mean <= mean_mm && r_p95 <= p95_mm,
+        "{name}: roundness error mean {r_mean} p95 {r_p95} mm"
+    );
+}
+
+/// At the default 1280x960 (about 3.1 px/mm on the end face) the metrology meets the goal with
+/// the ideal sensor and with the scenario's realism (noise, uneven light, vignetting, oil stains
+/// and dirt on the end faces, camera jitter): over 60 shots each, no bore missed, mean error at
+/// most 0.05 mm and 95th percentile at most 0.1 mm for both the bore diameter and its roundness.
 #[test]
 fn rendered_bores_measure_to_truth_within_hundredths_of_a_millimetre() {
-    for (name, sensor) in [
-        ("ideal sensor", SensorSection::ideal()),
-        ("scenario realism", smoke().sensor),
-    ] {
-        let (mut diameter, mut roundness, missed) = metrology_errors(&sensor, 40);
-        let (d_mean, d_p95) = mean_and_p95(&mut diameter);
-        let (r_mean, r_p95) = mean_and_p95(&mut roundness);
-        eprintln!(
-            "{name}: {} bores measured, {missed} missed; diameter error mean {d_mean:.4} mm p95 {d_p95:.4} mm; roundness error mean {r_mean:.4} mm p95 {r_p95:.4} mm",
-            diameter.len()
-        );
-        if name == "ideal sensor" {
-            assert_eq!(missed, 0);
-            assert!(d_mean <= 0.05 && d_p95 <= 0.1, "diameter {d_mean} {d_p95}");
-            assert!(r_mean <= 0.05 && r_p95 <= 0.1, "roundness {r_mean} {r_p95}");
-        }
-    }
+    assert_metrology(
+        "ideal sensor",
+        &SensorSection::ideal(),
+        (1280, 960),
+        (0.05, 0.1),
+    );
+    assert_metrology(
+        "scenario realism",
+        &smoke().sensor,
+        (1280, 960),
+        (0.05, 0.1),
+    );
+}
+
+/// At 640x480 (about 1.55 px/mm, so 0.05 mm is 0.08 px) the goal is out of reach; this guards
+/// the accuracy reached there with the scenario's realism: no bore missed, diameter and
+/// roundness within 0.15 mm on average and 0.25 mm at the 95th percentile.
+#[test]
+fn rendered_bores_at_640x480_measure_to_a_tenth_of_a_millimetre() {
+    assert_metrology(
+        "scenario realism",
+        &smoke().sensor,
+        (640, 480),
+        (0.15, 0.25),
+    );
 }
 
 /// The arm at its home pose stays out of the camera's view of the pick station.

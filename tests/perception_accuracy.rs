@@ -211,3 +211,90 @@ fn bottles_are_never_bores_even_when_they_look_like_a_dark_disc_in_a_bright_ring
     eprintln!("bottle hole borders that reached the geometric tests: {bottle_holes}");
     assert!(bottle_holes > 0);
 }
+
+/// Oil stains with soft rims lying across the bore edge (as on the rendered end faces) neither
+/// hide the bore nor read as out-of-roundness: the edge is the sharp step, not the stain's ramp,
+/// and arcs whose rim is stained are bridged by the robust outline of the rest.
+#[test]
+fn soft_stains_across_the_bore_edge_add_no_roundness() {
+    use twincell::perception::synthetic::{Illumination, Noise, Stain};
+    let detector = BoreDetector::default();
+    let mut tally = Tally::default();
+    let mut bridged = 0usize;
+    for seed in 0..40u64 {
+        let mut scene = random_scene(700 + seed, 640, 480, Difficulty::Clean);
+        let mut rng = twincell::rng::SimRng::new(seed);
+        scene.stains = Vec::new();
+        for tube in &scene.tubes {
+            // One to three overlapping lobes centred near the bore edge, as a rendered stain.
+            let angle = rng.range(0.0, std::f64::consts::TAU);
+            let r = tube.bore.mean_radius_px() + rng.range(0.0, 6.0);
+            let wall = tube.outer_radius_px - tube.bore.mean_radius_px();
+            for _ in 0..1 + rng.below(3) {
+                let radius = rng.range(4.0, 12.0_f64.min(0.8 * wall).max(5.0));
+                let spread = rng.range(-2.0, 2.0);
+                scene.stains.push(Stain {
+                    centre_px: [
+                        tube.centre_px[0] + (r + spread) * angle.cos() + rng.range(-2.0, 2.0),
+                        tube.centre_px[1] + (r + spread) * angle.sin() + rng.range(-2.0, 2.0),
+                    ],
+                    radius_px: radius,
+                    harmonics: vec![],
+                    transmission: rng.range(0.55, 0.8),
+                    soft_px: 0.6 * radius,
+                });
+            }
+        }
+        scene.illumination = Illumination {
+            gradient_x: 0.1,
+            gradient_y: -0.1,
+            vignetting: 0.1,
+        };
+        scene.noise = Noise {
+            sigma: 2.0,
+            salt_pepper: 0.0,
+        };
+        let truth = scene.truth();
+        let bores = detector
+            .detect(&scene.render())
+            .unwrap_or_else(|e| panic!("seed {seed}: {e}"));
+        tally.truths += truth.len();
+        for t in &truth {
+            let Some(b) = bores.iter().find(|b| matches(b, t)) else {
+                eprintln!("seed {seed}: missed {t:?}");
+                continue;
+            };
+            tally.found += 1;
+            bridged += usize::from(!b.bridge_points_px.is_empty());
+            tally
+                .centre_err_px
+                .push((b.centre_px[0] - t.cx).hypot(b.centre_px[1] - t.cy));
+            tally.radius_err_px.push((b.radius_px - t.r).abs());
+            tally
+                .roundness_err_px
+                .push((b.roundness_px - t.roundness).abs());
+        }
+        tally.false_positives += bores
+            .iter()
+            .filter(|b| !truth.iter().any(|t| matches(b, t)))
+            .count();
+    }
+    eprintln!(
+        "soft stains: recall {}/{}, {bridged} bores bridged, centre err mean {:.3} px, radius err \
+         mean {:.3} px, roundness err mean {:.3} max {:.3} px",
+        tally.found,
+        tally.truths,
+        mean(&tally.centre_err_px),
+        mean(&tally.radius_err_px),
+        mean(&tally.roundness_err_px),
+        max(&tally.roundness_err_px)
+    );
+    assert_accuracy(&tally);
+    assert!(bridged > 0, "no stain reached an edge");
+    assert!(
+        mean(&tally.roundness_err_px) <= 0.1 && max(&tally.roundness_err_px) <= 0.6,
+        "roundness error mean {} max {}",
+        mean(&tally.roundness_err_px),
+        max(&tally.roundness_err_px)
+    );
+}

@@ -4,6 +4,7 @@
 //!
 //! Verification runs `scripts/verify_rrd.sh`, which installs `rerun-sdk` into a virtual
 //! environment on first use. When it cannot, these tests fail: they never skip.
+#![cfg(feature = "record")]
 
 mod common;
 

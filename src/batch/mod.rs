@@ -25,8 +25,8 @@ pub use report::{
     wilson_interval,
 };
 pub use trial_record::{
-    DecisionRecord, FailureReason, Outcome, PartRecord, Perception, StreamPartRecord, StreamRecord,
-    TrialRecord, TrialTiming,
+    CLEAR_CUT_BAND_MM, DecisionRecord, FailureReason, Outcome, PartRecord, Perception,
+    StreamPartRecord, StreamRecord, TrialRecord, TrialTiming,
 };
 
 /// Runs one trial of a scenario. Implementations must be deterministic in `(index, seed)`.

@@ -110,6 +110,10 @@ pub struct Sorting {
     pub accept_reject: AcceptConfusion,
     /// True part type -> detected type -> count.
     pub part_type: BTreeMap<String, BTreeMap<String, u32>>,
+    /// Parts whose true roundness lies outside the band around the tolerance.
+    pub clear_cut: u32,
+    /// Of those, the ones judged wrong (accepted out of tolerance or rejected within it).
+    pub clear_cut_misjudged: u32,
 }
 
 /// Simulated cycle-time statistics over the successful trials, s.
@@ -353,6 +357,12 @@ impl BatchReport {
             } else {
                 truth.reject += 1;
             }
+            if part.clear_cut {
+                sorting.clear_cut += 1;
+                if decision.accept != part.truly_acceptable {
+                    sorting.clear_cut_misjudged += 1;
+                }
+            }
             *sorting
                 .part_type
                 .entry(part.part_type.clone())
@@ -538,6 +548,32 @@ impl BatchReport {
                 }
             }
         }
+        let verdicts = &self.sorting.accept_reject;
+        let _ = writeln!(
+            out,
+            "{:<22}true accept -> {} accepted {} rejected; true reject -> {} accepted {} rejected",
+            "sorting",
+            verdicts.truly_accept.accept,
+            verdicts.truly_accept.reject,
+            verdicts.truly_reject.accept,
+            verdicts.truly_reject.reject
+        );
+        let type_errors: u32 = self
+            .sorting
+            .part_type
+            .iter()
+            .flat_map(|(truth, detected)| {
+                detected
+                    .iter()
+                    .filter(move |(name, _)| *name != truth)
+                    .map(|(_, n)| *n)
+            })
+            .sum();
+        let _ = writeln!(
+            out,
+            "  {:<20}{} of {} clear-cut parts misjudged; {} parts of the wrong detected type",
+            "", self.sorting.clear_cut_misjudged, self.sorting.clear_cut, type_errors
+        );
         let _ = writeln!(
             out,
             "{:<22}{:>8}{:>10}{:>10}{:>10}",
@@ -652,6 +688,7 @@ mod tests {
             true_roundness_mm: 0.1,
             true_bore_diameter_mm: 20.0,
             truly_acceptable: true,
+            clear_cut: true,
             correct_bin: "a".into(),
         });
         r.decision = Some(DecisionRecord {
@@ -660,6 +697,7 @@ mod tests {
             measured_bore_diameter_mm: None,
             accept: ok,
             bin: "a".into(),
+            note: None,
         });
         r.cycle_time_s = 10.0;
         r

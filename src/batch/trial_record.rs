@@ -57,6 +57,8 @@ pub enum FailureReason {
     PhysicsBlowUp,
     /// The trial's code panicked.
     Panic,
+    /// The camera pipeline could not run (no renderer, a detector error).
+    PerceptionError,
 }
 
 impl FailureReason {
@@ -75,9 +77,14 @@ impl FailureReason {
             Self::Timeout => "timeout",
             Self::PhysicsBlowUp => "physics_blow_up",
             Self::Panic => "panic",
+            Self::PerceptionError => "perception_error",
         }
     }
 }
+
+/// Half-width of the band around the roundness tolerance inside which a verdict may go either
+/// way, mm.
+pub const CLEAR_CUT_BAND_MM: f64 = 0.05;
 
 /// The truth about the trial's part.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -90,6 +97,10 @@ pub struct PartRecord {
     pub true_bore_diameter_mm: f64,
     /// Whether the truth says accept (roundness within tolerance).
     pub truly_acceptable: bool,
+    /// Whether the true roundness lies more than [`CLEAR_CUT_BAND_MM`] from the tolerance: a part
+    /// the sorter must always judge right (closer to the limit, measurement noise may decide).
+    #[serde(default)]
+    pub clear_cut: bool,
     /// The bin the truth calls for.
     pub correct_bin: String,
 }
@@ -107,6 +118,10 @@ pub struct DecisionRecord {
     pub accept: bool,
     /// The bin chosen.
     pub bin: String,
+    /// Why perception's answers were overruled (a measured bore that contradicts the detected
+    /// type sends the part to the reject bin).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub note: Option<String>,
 }
 
 /// Wall-clock costs of a trial: the only fields that differ between identical runs.

@@ -41,6 +41,9 @@ pub enum CellError {
     /// The scenario lacks something the cell needs.
     #[error("scenario: {0}")]
     Scenario(String),
+    /// The camera pipeline (renderer, detector model) could not be set up.
+    #[error(transparent)]
+    Camera(Box<super::camera_perception::CameraPerceptionError>),
 }
 
 /// A bin in the world.

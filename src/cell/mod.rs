@@ -1,6 +1,8 @@
 //! The sorting cell: arm on a pedestal, conveyor with a photo-eye, bins, the part and the bottle,
 //! built into one physics world from a scenario, and the task controller that runs a trial.
 
+pub mod bottle_fit;
+pub mod camera_perception;
 mod conveyor;
 mod layout;
 mod observer;
@@ -9,6 +11,7 @@ mod trial;
 
 use nalgebra::Isometry3;
 
+pub use camera_perception::CameraPerception;
 pub use conveyor::ConveyorHooks;
 pub use layout::{BinBody, Cell, CellError, Tag};
 pub use observer::{

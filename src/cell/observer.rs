@@ -225,10 +225,6 @@ impl<'a> ObserverSlot<'a> {
     }
 
     /// Hands perception's result to the observer; `frame` is built only when one is attached.
-    #[expect(
-        dead_code,
-        reason = "the camera perception path of the trial calls it (issue 7); drop this then"
-    )]
     pub(crate) fn perception(&mut self, frame: impl FnOnce() -> PerceptionFrame) {
         if let Some(observer) = self.observer.as_deref_mut() {
             observer.perception(self.now_s, &frame());

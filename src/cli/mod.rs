@@ -3,7 +3,9 @@
 
 use std::process::ExitCode;
 
+pub mod bench;
 pub mod demo;
+pub mod detect;
 pub mod kinematics;
 pub mod measure;
 pub mod merge;

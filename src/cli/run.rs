@@ -7,8 +7,9 @@ use std::sync::atomic::AtomicBool;
 
 use anyhow::Result;
 use clap::Args;
-use twincell::batch::{BatchPlan, Perception, Shard, cancel_on_signals, run_batch};
+use twincell::batch::{BatchPlan, BatchSummary, Perception, Shard, cancel_on_signals, run_batch};
 use twincell::cell::CellTrialRunner;
+#[cfg(feature = "record")]
 use twincell::record::{DEFAULT_VIEWER_ADDR, RerunRecorder};
 use twincell::scenario::Scenario;
 
@@ -37,22 +38,40 @@ pub struct RunArgs {
     /// Where perception's answers come from.
     #[arg(long, value_enum, default_value_t = Perception::Camera)]
     perception: Perception,
+    /// The detector model for camera perception (default: the shipped one).
+    #[arg(long, value_name = "FILE.onnx")]
+    model: Option<PathBuf>,
     /// Least success rate that passes, in [0, 1] (exit code 1 below it).
     #[arg(long, value_name = "RATE", value_parser = super::parse_rate)]
     min_success: Option<f64>,
     /// Print report.json to stdout instead of the summary table.
     #[arg(long)]
-    json: bool,
+    pub json: bool,
     /// Record the trials into a Rerun recording (.rrd) for the viewer of Rerun 0.36.
+    #[cfg(feature = "record")]
     #[arg(long, value_name = "FILE.rrd", conflicts_with = "connect")]
     record: Option<PathBuf>,
     /// Stream the trials to a running Rerun 0.36 viewer (HOST:PORT).
+    #[cfg(feature = "record")]
     #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = DEFAULT_VIEWER_ADDR)]
     connect: Option<String>,
 }
 
 /// Runs `twincell run`.
 pub fn run(args: &RunArgs) -> Result<ExitCode> {
+    let summary = run_scenario(args, !args.json)?;
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&summary.report)?);
+    } else {
+        print!("{}", summary.report.summary_table());
+        println!("results in {}", args.out.display());
+    }
+    Ok(ExitCode::from(summary.exit_code()))
+}
+
+/// Loads the scenario, applies the overrides and runs the batch (with a progress bar when
+/// `progress`), writing the output directory.
+pub fn run_scenario(args: &RunArgs, progress: bool) -> Result<BatchSummary> {
     let mut scenario = Scenario::load(&args.scenario).map_err(|e| BadInput(e.to_string()))?;
     if let Some(seed) = args.seed {
         scenario.seed = seed;
@@ -72,28 +91,32 @@ pub fn run(args: &RunArgs) -> Result<ExitCode> {
         shard: args.shard,
         min_success: args.min_success,
     };
-    let mut runner = CellTrialRunner::new(scenario, &args.scenario, args.perception)
-        .map_err(|e| BadInput(format!("{}: {e}", args.scenario.display())))?;
+    #[cfg_attr(not(feature = "record"), allow(unused_mut))]
+    let mut runner = match &args.model {
+        Some(model) => {
+            CellTrialRunner::with_model(scenario, &args.scenario, args.perception, model)
+        }
+        None => CellTrialRunner::new(scenario, &args.scenario, args.perception),
+    }
+    .map_err(|e| BadInput(format!("{}: {e}", args.scenario.display())))?;
+    #[cfg(feature = "record")]
     let recorder = recorder(args, &plan)?;
+    #[cfg(feature = "record")]
     if let Some(recorder) = &recorder {
         runner.observe_with(Arc::new(recorder.clone()));
     }
     let cancel = Arc::new(AtomicBool::new(false));
     cancel_on_signals(&cancel)?;
-    let summary = run_batch(&runner, &plan, &args.out, &cancel, !args.json)?;
+    let summary = run_batch(&runner, &plan, &args.out, &cancel, progress)?;
+    #[cfg(feature = "record")]
     if let Some(recorder) = recorder {
         recorder.finish()?;
     }
-    if args.json {
-        println!("{}", serde_json::to_string_pretty(&summary.report)?);
-    } else {
-        print!("{}", summary.report.summary_table());
-        println!("results in {}", args.out.display());
-    }
-    Ok(ExitCode::from(summary.exit_code()))
+    Ok(summary)
 }
 
 /// The recorder `--record` or `--connect` asks for; one recording per batch, named after it.
+#[cfg(feature = "record")]
 fn recorder(args: &RunArgs, plan: &BatchPlan) -> Result<Option<RerunRecorder>> {
     let name = format!(
         "{}-{:?}-seed{}",

@@ -22,14 +22,15 @@
 //! 5. Circularity: filtered roundness at most `max_roundness_ratio` times the radius. A lying
 //!    bottle's capsule (and any dark band in it) is elongated and fails.
 
-use crate::perception::circle_fit::{
-    CircleFit, fit_geometric, fit_kasa, raw_roundness, refine_geometric,
-};
+use crate::perception::circle_fit::{CircleFit, distance, fit_geometric, fit_kasa, raw_roundness};
 use crate::perception::contours::{BorderKind, Contour, find_contours};
 use crate::perception::error::PerceptionError;
 use crate::perception::filters::FilterMethod;
-use crate::perception::roundness::{DEFAULT_MAX_UPR, RoundnessProfile, filtered_roundness};
-use crate::perception::subpixel::{RayParams, refine_ray, sample_bilinear};
+use crate::perception::roundness::{
+    DEFAULT_MAX_UPR, RoundnessProfile, filtered_roundness, filtered_roundness_bridged,
+    fit_series_robust, median_of,
+};
+use crate::perception::subpixel::{EdgePoint, RayDir, RayParams, refine_ray, sample_bilinear};
 use crate::perception::threshold::ThresholdMethod;
 use image::GrayImage;
 use std::f64::consts::TAU;
@@ -83,6 +84,15 @@ pub struct BoreDetectorParams {
     pub min_valid_share: f64,
     /// Largest roundness as a share of the radius.
     pub max_roundness_ratio: f64,
+    /// Largest departure of the levels just either side of an edge from those further out, as a
+    /// share of the contrast, for the edge to count (see [`EdgePoint::flank_departure`]).
+    pub max_flank_departure: f64,
+    /// Edges further than this many robust scales from the robust series are outliers.
+    pub outlier_scales: f64,
+    /// Smallest robust scale of the edge radii, pixels.
+    pub edge_scale_floor_px: f64,
+    /// Share of the rays that must keep a clean edge.
+    pub min_clean_share: f64,
     /// Roundness profile cutoff, undulations per revolution.
     pub max_upr: usize,
     /// Ray sampling.
@@ -107,6 +117,10 @@ impl Default for BoreDetectorParams {
             min_closed_share: 0.7,
             min_valid_share: 0.7,
             max_roundness_ratio: 0.25,
+            max_flank_departure: 0.05,
+            outlier_scales: 3.0,
+            edge_scale_floor_px: 0.03,
+            min_clean_share: 0.4,
             max_upr: DEFAULT_MAX_UPR,
             rays: RayParams::default(),
         }
@@ -128,12 +142,34 @@ pub struct Bore {
     pub radius_sigma_px: f64,
     /// One-sigma uncertainty of the roundness.
     pub roundness_sigma_px: f64,
-    /// Edge points the fit used.
+    /// Measured edge points the fit used.
     pub edge_points_px: Vec<[f64; 2]>,
+    /// Points of the robust low-order outline standing in for the rays whose edge was rejected
+    /// (hidden or displaced by a stain or dirt): the roundness profile bridges those arcs with
+    /// them. Empty when every ray gave a clean edge.
+    pub bridge_points_px: Vec<[f64; 2]>,
+    /// Share of the rays whose measured edge the fit used.
+    pub coverage: f64,
     /// Median `(rim - bore) / rim` over the rays.
     pub contrast_ratio: f64,
     /// Median ratio of the rim's outer radius to the bore radius over the rays.
     pub outer_ratio: f64,
+}
+
+impl Bore {
+    /// The same bore seen in an image whose origin lies `(dx_px, dy_px)` before this one's (a bore
+    /// found in a crop, moved into the full image): every pixel coordinate shifts.
+    pub fn translated(mut self, dx_px: f64, dy_px: f64) -> Self {
+        self.centre_px = [self.centre_px[0] + dx_px, self.centre_px[1] + dy_px];
+        for p in self
+            .edge_points_px
+            .iter_mut()
+            .chain(self.bridge_points_px.iter_mut())
+        {
+            *p = [p[0] + dx_px, p[1] + dy_px];
+        }
+        self
+    }
 }
 
 /// Smallest image side the detector accepts.
@@ -231,36 +267,63 @@ impl BoreDetector {
         }
         let ray_count = ((TAU * coarse.radius).round() as usize).clamp(180, 1024);
         let coarse_radii = binned_radii(&border, coarse.centre, ray_count, coarse.radius);
+        let rays: Vec<RayDir> = (0..ray_count)
+            .map(|i| RayDir::new(TAU * i as f64 / ray_count as f64))
+            .collect();
+        // Where the threshold cut a stain or dirt out of the rim, the hole border bulges around
+        // it; a robust low-order outline of the border ignores such bulges.
+        let stride = ray_count.div_ceil(MAX_SERIES_POINTS);
+        let outline = fit_series_robust(
+            &rays
+                .iter()
+                .step_by(stride)
+                .map(|r| r.unit)
+                .collect::<Vec<_>>(),
+            &coarse_radii
+                .iter()
+                .step_by(stride)
+                .copied()
+                .collect::<Vec<_>>(),
+            OUTLINE_ORDER,
+            0.5,
+        )?;
 
-        let mut edges = Vec::with_capacity(ray_count);
-        for (i, &rho) in coarse_radii.iter().enumerate() {
-            let angle = TAU * i as f64 / ray_count as f64;
-            if let Some(e) = refine_ray(filtered, coarse.centre, angle, rho, &p.rays) {
-                edges.push(e);
-            }
-        }
+        let mut scratch = Vec::new();
+        let edges: Vec<EdgePoint> = rays
+            .iter()
+            .filter_map(|&ray| {
+                let rho = outline.radius_along(ray.unit);
+                refine_ray(filtered, coarse.centre, ray, rho, &p.rays, &mut scratch)
+            })
+            .collect();
         if (edges.len() as f64) < p.min_valid_share * ray_count as f64 {
             return None;
         }
         let mut ratios: Vec<f64> = edges
             .iter()
-            .map(|e| (e.outer_level - e.inner_level) / e.outer_level.max(1.0))
+            .map(|e| e.contrast() / e.outer_level.max(1.0))
             .collect();
-        let contrast_ratio = median(&mut ratios);
-        let mut contrasts: Vec<f64> = edges
-            .iter()
-            .map(|e| e.outer_level - e.inner_level)
-            .collect();
-        if contrast_ratio < p.min_contrast_ratio || median(&mut contrasts) < p.min_contrast_levels {
+        let contrast_ratio = median_of(&mut ratios);
+        let mut contrasts: Vec<f64> = edges.iter().map(EdgePoint::contrast).collect();
+        if contrast_ratio < p.min_contrast_ratio
+            || median_of(&mut contrasts) < p.min_contrast_levels
+        {
             return None;
         }
         let outer_ratio = self.ring_test(filtered, coarse.centre, &edges)?;
 
+        let mut bridges = Vec::new();
+        let mut coverage = 1.0;
         let (points, fit, profile) = match p.edge_mode {
             EdgeMode::SubPixel => {
-                let points: Vec<[f64; 2]> = edges.iter().map(|e| e.point_px).collect();
-                let (points, fit, profile) = fit_with_rejection(points, p.max_upr)?;
-                (points, fit, profile)
+                let arcs = self.clean_edges(coarse.centre, &rays, &edges)?;
+                bridges = arcs.bridges;
+                coverage = arcs.points.len() as f64 / ray_count as f64;
+                let fit = fit_geometric(&arcs.points).ok()?;
+                let profile =
+                    filtered_roundness_bridged(&arcs.points, &bridges, fit.centre, p.max_upr)
+                        .ok()?;
+                (arcs.points, fit, profile)
             }
             EdgeMode::IntegerContour => integer_fit(border, p.max_upr)?,
             EdgeMode::Canny => {
@@ -289,9 +352,60 @@ impl BoreDetector {
             radius_sigma_px: sigma / n.sqrt(),
             roundness_sigma_px: profile.roundness_sigma(),
             edge_points_px: points,
+            bridge_points_px: bridges,
+            coverage,
             contrast_ratio,
             outer_ratio,
         })
+    }
+
+    /// The edges a roundness measurement can trust, and bridge points for the arcs without one.
+    ///
+    /// An edge is dropped when the levels either side of it depart from lines by more than
+    /// `max_flank_departure` of the contrast (a speck of dirt or a stain's curved rim lies
+    /// against it), or when its radius about the ray origin lies more than `outlier_scales` robust scales
+    /// from a robust low-order series fitted to the remaining edges. The rays left without an
+    /// edge get a bridge point on that series. `None` when less than `min_clean_share` of the
+    /// rays keep an edge.
+    fn clean_edges(
+        &self,
+        origin: [f64; 2],
+        rays: &[RayDir],
+        edges: &[EdgePoint],
+    ) -> Option<CleanArcs> {
+        let p = &self.params;
+        let flat: Vec<&EdgePoint> = edges
+            .iter()
+            .filter(|e| e.flank_departure() <= p.max_flank_departure)
+            .collect();
+        let stride = flat.len().div_ceil(MAX_SERIES_POINTS).max(1);
+        let flat_units: Vec<[f64; 2]> = flat.iter().step_by(stride).map(|e| e.ray.unit).collect();
+        let flat_radii: Vec<f64> = flat.iter().step_by(stride).map(|e| e.radius_px).collect();
+        let series =
+            fit_series_robust(&flat_units, &flat_radii, EDGE_ORDER, p.edge_scale_floor_px)?;
+        let limit = p.outlier_scales * series.scale;
+        let mut points = Vec::with_capacity(flat.len());
+        let mut kept_angles = Vec::with_capacity(flat.len());
+        for e in &flat {
+            if (e.radius_px - series.radius_along(e.ray.unit)).abs() <= limit {
+                points.push(e.point_px);
+                kept_angles.push(e.ray.angle_rad);
+            }
+        }
+        if (points.len() as f64) < p.min_clean_share * rays.len() as f64 {
+            return None;
+        }
+        // Both lists are in ray order: walk them together.
+        let mut bridges = Vec::new();
+        let mut next = kept_angles.iter().peekable();
+        for ray in rays {
+            if next.next_if(|&&a| a == ray.angle_rad).is_none() {
+                let [c, s] = ray.unit;
+                let r = series.radius_along(ray.unit);
+                bridges.push([origin[0] + r * c, origin[1] + r * s]);
+            }
+        }
+        Some(CleanArcs { points, bridges })
     }
 
     /// Test 4: the rim closes within `max_outer_ratio` and is wide enough. Returns the median
@@ -300,7 +414,7 @@ impl BoreDetector {
         &self,
         filtered: &GrayImage,
         centre: [f64; 2],
-        edges: &[crate::perception::subpixel::EdgePoint],
+        edges: &[EdgePoint],
     ) -> Option<f64> {
         let p = &self.params;
         // Every fourth ray is plenty for a statistic over directions.
@@ -309,7 +423,7 @@ impl BoreDetector {
         let mut widths = Vec::with_capacity(sampled.len());
         for e in &sampled {
             let deep = e.inner_level + 0.35 * (e.outer_level - e.inner_level);
-            let (s, c) = e.angle_rad.sin_cos();
+            let [c, s] = e.ray.unit;
             let limit = p.max_outer_ratio * e.radius_px;
             let mut t = e.radius_px + 2.0;
             while t <= limit {
@@ -324,10 +438,10 @@ impl BoreDetector {
         if (ratios.len() as f64) < p.min_closed_share * sampled.len() as f64 {
             return None;
         }
-        if median(&mut widths) < p.min_ring_width_px {
+        if median_of(&mut widths) < p.min_ring_width_px {
             return None;
         }
-        Some(median(&mut ratios))
+        Some(median_of(&mut ratios))
     }
 }
 
@@ -339,7 +453,7 @@ fn binned_radii(points: &[[f64; 2]], centre: [f64; 2], bins: usize, fallback: f6
         let (dx, dy) = (q[0] - centre[0], q[1] - centre[1]);
         let angle = dy.atan2(dx).rem_euclid(TAU);
         let bin = ((angle / TAU * bins as f64).round() as usize) % bins;
-        sum[bin] += dx.hypot(dy);
+        sum[bin] += distance(dx, dy);
         count[bin] += 1;
     }
     let filled: Vec<usize> = (0..bins).filter(|&i| count[i] > 0).collect();
@@ -360,34 +474,21 @@ fn binned_radii(points: &[[f64; 2]], centre: [f64; 2], bins: usize, fallback: f6
     radii
 }
 
-/// Geometric fit, then one round of dropping points far from the filtered profile.
-fn fit_with_rejection(
+/// Order of the robust outline of a hole border: enough for an off-centre origin (1), ellipses
+/// and lobes (2, 3) and their perspective images.
+const OUTLINE_ORDER: usize = 3;
+
+/// Order of the robust series the measured edges are checked against.
+const EDGE_ORDER: usize = 4;
+
+/// Most points a robust series is fitted to (every n-th of more): plenty for its few
+/// coefficients, and the fit's cost grows with them.
+const MAX_SERIES_POINTS: usize = 200;
+
+/// Measured edge points and bridge points of [`BoreDetector::clean_edges`].
+struct CleanArcs {
     points: Vec<[f64; 2]>,
-    max_upr: usize,
-) -> Option<(Vec<[f64; 2]>, CircleFit, RoundnessProfile)> {
-    let fit = fit_geometric(&points).ok()?;
-    let profile = filtered_roundness(&points, fit.centre, max_upr).ok()?;
-    let residuals: Vec<f64> = points
-        .iter()
-        .map(|q| {
-            let (dx, dy) = (q[0] - fit.centre[0], q[1] - fit.centre[1]);
-            dx.hypot(dy) - profile.radius_at(dy.atan2(dx))
-        })
-        .collect();
-    let mut abs: Vec<f64> = residuals.iter().map(|r| r.abs()).collect();
-    let limit = (4.0 * 1.4826 * median(&mut abs)).max(0.25);
-    let kept: Vec<[f64; 2]> = points
-        .iter()
-        .zip(&residuals)
-        .filter(|(_, r)| r.abs() <= limit)
-        .map(|(q, _)| *q)
-        .collect();
-    if kept.len() == points.len() {
-        return Some((points, fit, profile));
-    }
-    let fit = refine_geometric(&kept, fit).ok()?;
-    let profile = filtered_roundness(&kept, fit.centre, max_upr).ok()?;
-    Some((kept, fit, profile))
+    bridges: Vec<[f64; 2]>,
 }
 
 /// The classic fit on integer points: geometric circle, profile only for the noise estimate.
@@ -423,14 +524,4 @@ fn canny_points(edge_map: &GrayImage, centre: [f64; 2], coarse_radii: &[f64]) ->
         }
     }
     points
-}
-
-/// Median of `values` (reordered); 0 for an empty slice.
-fn median(values: &mut [f64]) -> f64 {
-    if values.is_empty() {
-        return 0.0;
-    }
-    let mid = values.len() / 2;
-    let (_, m, _) = values.select_nth_unstable_by(mid, f64::total_cmp);
-    *m
 }

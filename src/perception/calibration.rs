@@ -8,7 +8,7 @@
 use crate::perception::bore::Bore;
 use crate::perception::circle_fit::fit_geometric;
 use crate::perception::error::PerceptionError;
-use crate::perception::roundness::filtered_roundness;
+use crate::perception::roundness::filtered_roundness_bridged;
 use nalgebra::{Isometry3, Point3, Vector3};
 
 /// A calibrated pinhole camera looking at the end-face plane.
@@ -183,21 +183,25 @@ impl CameraCalibration {
         ])
     }
 
-    /// Measures `bore` on the end-face plane: its edge points are back-projected onto the plane
-    /// and fitted there, so perspective and camera tilt do not distort the result.
+    /// Measures `bore` on the end-face plane: its edge points (and bridge points) are
+    /// back-projected onto the plane and fitted there, so perspective and camera tilt do not
+    /// distort the result.
     pub fn measure_on_plane(
         &self,
         bore: &Bore,
         max_upr: usize,
     ) -> Result<PlaneBore, PerceptionError> {
-        let points_in_world = bore
-            .edge_points_px
-            .iter()
-            .map(|p| self.pixel_to_plane(p[0], p[1]))
-            .collect::<Result<Vec<_>, _>>()?;
-        let points_on_plane: Vec<[f64; 2]> = points_in_world.iter().map(|p| [p.x, p.y]).collect();
+        let on_plane = |points: &[[f64; 2]]| -> Result<Vec<[f64; 2]>, PerceptionError> {
+            points
+                .iter()
+                .map(|p| self.pixel_to_plane(p[0], p[1]).map(|q| [q.x, q.y]))
+                .collect()
+        };
+        let points_on_plane = on_plane(&bore.edge_points_px)?;
+        let bridges_on_plane = on_plane(&bore.bridge_points_px)?;
         let fit = fit_geometric(&points_on_plane)?;
-        let profile = filtered_roundness(&points_on_plane, fit.centre, max_upr)?;
+        let profile =
+            filtered_roundness_bridged(&points_on_plane, &bridges_on_plane, fit.centre, max_upr)?;
         let n = points_on_plane.len() as f64;
         let sigma = profile.noise_sigma();
         Ok(PlaneBore {
@@ -299,6 +303,8 @@ mod tests {
             radius_sigma_px: 0.0,
             roundness_sigma_px: 0.0,
             edge_points_px,
+            bridge_points_px: Vec::new(),
+            coverage: 1.0,
             contrast_ratio: 1.0,
             outer_ratio: 1.5,
         };

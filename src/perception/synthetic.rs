@@ -149,6 +149,9 @@ pub struct Stain {
     pub harmonics: Vec<(f64, f64)>,
     /// Factor applied to the reflectance under the stain (0.55..0.8 typical).
     pub transmission: f64,
+    /// Width of the stain's soft rim, pixels: the darkening fades out smoothly (smoothstep)
+    /// over this distance inside the outline, as oil thins out at its edge. 0 for a sharp edge.
+    pub soft_px: f64,
 }
 
 impl Stain {
@@ -362,8 +365,15 @@ impl Scene {
         }
         for stain in &self.stains {
             let (dx, dy) = (x - stain.centre_px[0], y - stain.centre_px[1]);
-            if (dx * dx + dy * dy).sqrt() < stain.radius_at(dy.atan2(dx)) {
-                value *= stain.transmission;
+            let depth = stain.radius_at(dy.atan2(dx)) - (dx * dx + dy * dy).sqrt();
+            if depth > 0.0 {
+                let cover = if depth >= stain.soft_px {
+                    1.0
+                } else {
+                    let u = depth / stain.soft_px;
+                    u * u * (3.0 - 2.0 * u)
+                };
+                value *= 1.0 + cover * (stain.transmission - 1.0);
             }
         }
         value
@@ -581,6 +591,7 @@ pub fn random_scene(seed: u64, width_px: u32, height_px: u32, difficulty: Diffic
                 radius_px: rng.range(6.0, 25.0),
                 harmonics,
                 transmission: rng.range(0.55, 0.8),
+                soft_px: 0.0,
             });
         }
     }

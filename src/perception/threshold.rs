@@ -58,7 +58,28 @@ impl ThresholdMethod {
 
 /// Bright (255) where `p >= floor(block mean) - delta`, blocks clipped at the border; equal to
 /// `imageproc::contrast::adaptive_threshold` (radius 0 is treated as 1, as that needs `> 0`).
+///
+/// Runs the same code compiled for AVX2 where the CPU has it (chosen at run time): every step is
+/// exact integer or exact `f32` arithmetic, so both builds give the same bytes (tested).
 pub fn adaptive_mean_threshold(image: &GrayImage, block_radius_px: u32, delta: i32) -> GrayImage {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the function only requires AVX2, which the CPU was just found to have.
+        return unsafe { adaptive_mean_avx2(image, block_radius_px, delta) };
+    }
+    adaptive_mean_kernel(image, block_radius_px, delta)
+}
+
+/// [`adaptive_mean_kernel`] compiled for AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn adaptive_mean_avx2(image: &GrayImage, block_radius_px: u32, delta: i32) -> GrayImage {
+    adaptive_mean_kernel(image, block_radius_px, delta)
+}
+
+/// The body of [`adaptive_mean_threshold`], inlined into each instruction-set variant.
+#[inline(always)]
+fn adaptive_mean_kernel(image: &GrayImage, block_radius_px: u32, delta: i32) -> GrayImage {
     let (w, h) = (image.width() as usize, image.height() as usize);
     let mut out = GrayImage::new(image.width(), image.height());
     if w == 0 || h == 0 {
@@ -92,8 +113,10 @@ pub fn adaptive_mean_threshold(image: &GrayImage, block_radius_px: u32, delta: i
         let y_low = y.saturating_sub(r);
         let y_high = (y + r).min(h - 1);
         let rows_in = (y_high - y_low + 1) as i64;
-        for x in 0..w {
-            prefix[x + 1] = prefix[x].wrapping_add(column_sums[x]);
+        let mut running = 0u32;
+        for (p, &s) in prefix[1..].iter_mut().zip(&column_sums) {
+            running = running.wrapping_add(s);
+            *p = running;
         }
         let src_row = &src[y * w..(y + 1) * w];
         let out_row = &mut dst[y * w..(y + 1) * w];
@@ -104,15 +127,22 @@ pub fn adaptive_mean_threshold(image: &GrayImage, block_radius_px: u32, delta: i
             let k = i64::from(src_row[x]) + i64::from(delta) + 1;
             if k * count > sum { 255 } else { 0 }
         };
-        // Interior columns share one block size: a branch-free loop the compiler vectorises.
-        let (inner_low, inner_high) = (r.min(w), w.saturating_sub(r));
+        // Interior columns share one block size: a branch-free loop the compiler vectorises, in
+        // f32 lanes (SSE2 has no 32-bit integer multiply), exact while every product and sum
+        // stays below 2^24.
+        let count = rows_in * (2 * r + 1) as i64;
+        let offset = i64::from(delta) + 1;
+        let largest = count * offset.abs().max((255 + offset).abs()).max(255);
+        let (inner_low, inner_high) = if largest < 1 << 24 {
+            (r.min(w), w.saturating_sub(r))
+        } else {
+            (w, w)
+        };
         for x in (0..inner_low).chain(inner_high.max(inner_low)..w) {
             out_row[x] = decide(x, x.saturating_sub(r), (x + r).min(w - 1));
         }
         if inner_low < inner_high {
-            // Block sums stay below 2^31 for radii up to 1450, so i32 lanes suffice.
-            let count = (rows_in * (2 * r + 1) as i64) as i32;
-            let offset = delta.saturating_add(1);
+            let (count, offset) = (count as f32, offset as f32);
             let (high, low) = (&prefix[inner_low + r + 1..], &prefix[..inner_high - r]);
             for (((o, &p), &hi), &lo) in out_row[inner_low..inner_high]
                 .iter_mut()
@@ -120,9 +150,9 @@ pub fn adaptive_mean_threshold(image: &GrayImage, block_radius_px: u32, delta: i
                 .zip(high)
                 .zip(low)
             {
-                let sum = hi.wrapping_sub(lo) as i32;
-                let k = i32::from(p) + offset;
-                *o = if k.wrapping_mul(count) > sum { 255 } else { 0 };
+                let sum = hi.wrapping_sub(lo) as i32 as f32;
+                let k = f32::from(p) + offset;
+                *o = if k * count > sum { 255 } else { 0 };
             }
         }
     }
@@ -221,6 +251,25 @@ mod tests {
             let ours = adaptive_mean_threshold(&image, radius, delta);
             let oracle = imageproc::contrast::adaptive_threshold(&image, radius, delta);
             prop_assert_eq!(ours.as_raw(), oracle.as_raw());
+            // The baseline build too, whichever the dispatch picked.
+            let portable = adaptive_mean_kernel(&image, radius, delta);
+            prop_assert_eq!(portable.as_raw(), oracle.as_raw());
+        }
+
+        #[test]
+        fn adaptive_mean_matches_imageproc_at_the_default_block(
+            seed in any::<u64>(), delta in -300i32..300
+        ) {
+            // The detector's block (radius 20) on a frame wider than two blocks, so the interior
+            // fast path runs, with offsets up to where its f32 products would stop being exact.
+            let mut rng = crate::rng::SimRng::new(seed);
+            let data: Vec<u8> = (0..97 * 61).map(|_| (rng.next_u64() % 256) as u8).collect();
+            let image = GrayImage::from_raw(97, 61, data).unwrap_or_else(|| GrayImage::new(1, 1));
+            let ours = adaptive_mean_threshold(&image, 20, delta);
+            let oracle = imageproc::contrast::adaptive_threshold(&image, 20, delta);
+            prop_assert_eq!(ours.as_raw(), oracle.as_raw());
+            let portable = adaptive_mean_kernel(&image, 20, delta);
+            prop_assert_eq!(portable.as_raw(), oracle.as_raw());
         }
 
         #[test]

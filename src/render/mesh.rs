@@ -3,6 +3,9 @@
 //! Every mesh is a plain triangle list (three vertices per triangle, outward normals, counter-
 //! clockwise seen from outside). The axle part's mesh carries its true bore: the end face's inner
 //! edge follows [`BoreForm::radius_at`] at [`BORE_SEGMENTS`] points.
+//!
+//! Triangles are kept few and wide where that costs no accuracy: a software rasteriser shades
+//! whole 4x4 pixel blocks, so a sub-pixel sliver costs as much as a block of pixels.
 
 use nalgebra::{Point3, Vector3};
 
@@ -13,6 +16,8 @@ use crate::cell::BoreForm;
 pub const BORE_SEGMENTS: usize = 1024;
 /// Segments around other round bodies.
 pub const ROUND_SEGMENTS: usize = 64;
+/// Segments around a part's outer wall (its edge error is below 10 um for a 62 mm part).
+pub const OUTER_SEGMENTS: usize = 128;
 
 /// One vertex in a body's frame.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -55,6 +60,44 @@ impl Mesh {
                 normal,
                 material,
             });
+        }
+    }
+
+    /// Fills the band between two closed rings, each listed counter-clockwise about z from the
+    /// same angle: each point is joined to the other ring's points nearest in turn. The
+    /// triangles wind counter-clockwise seen from +z where `a` lies inside `b` in a plane (swap
+    /// the rings for the other side). `normal` is the band's, or each triangle's own if `None`.
+    fn zip_rings(
+        &mut self,
+        a: &[Point3<f64>],
+        b: &[Point3<f64>],
+        normal: Option<Vector3<f64>>,
+        material: Material,
+    ) {
+        let (n, m) = (a.len(), b.len());
+        let (mut i, mut j) = (0, 0);
+        while i < n || j < m {
+            let (p, q) = (a[i % n], b[j % m]);
+            // Advance the ring whose next point comes first in the turn.
+            let next = if j == m || (i < n && (i + 1) * m <= (j + 1) * n) {
+                i += 1;
+                a[i % n]
+            } else {
+                j += 1;
+                b[j % m]
+            };
+            match normal {
+                Some(normal) => {
+                    for position in [p, q, next] {
+                        self.vertices.push(MeshVertex {
+                            position,
+                            normal,
+                            material,
+                        });
+                    }
+                }
+                None => self.flat_triangle([p, q, next], material),
+            }
         }
     }
 
@@ -147,61 +190,66 @@ impl Mesh {
 
     /// An axle part: a tube standing on its bottom face, centred on the origin, whose bore
     /// follows `bore` exactly (its edge at [`BORE_SEGMENTS`] angles), with a machined end face on
-    /// top, a turned outer wall and a dark bore wall.
+    /// top, a turned outer wall ([`OUTER_SEGMENTS`]) and a dark bore wall.
+    ///
+    /// Only the end face's bore edge needs all [`BORE_SEGMENTS`] points; the triangles along it
+    /// are kept short: the end face is a narrow band from the bore edge out to a ring a quarter of
+    /// the wall thickness away, then a wide band to the outer edge, and the bore wall a band as
+    /// deep as that below the edge, then [`OUTER_SEGMENTS`] facets down to the bottom (on the
+    /// true bore at their corners). The bottom face, never in view, has [`OUTER_SEGMENTS`].
     pub fn axle_part(bore: &BoreForm, outer_radius_m: f64, height_m: f64) -> Self {
         let mut mesh = Self::default();
-        let n = BORE_SEGMENTS;
+        let (n, m) = (BORE_SEGMENTS, OUTER_SEGMENTS);
         let (top, bottom) = (height_m / 2.0, -height_m / 2.0);
-        let inner = |k: usize| {
-            let t = angle(k, n);
-            let r = bore.radius_at(t);
-            (Point3::new(r * t.cos(), r * t.sin(), 0.0), t)
+        let ring = |count: usize, z: f64, radius: &dyn Fn(f64) -> f64| -> Vec<Point3<f64>> {
+            (0..count)
+                .map(|k| {
+                    let t = angle(k, count);
+                    let r = radius(t);
+                    Point3::new(r * t.cos(), r * t.sin(), z)
+                })
+                .collect()
         };
-        for k in 0..n {
-            let ((a, t0), (b, t1)) = (inner(k), inner(k + 1));
-            let outer =
-                |t: f64, z: f64| Point3::new(outer_radius_m * t.cos(), outer_radius_m * t.sin(), z);
-            let lift = |p: Point3<f64>, z: f64| Point3::new(p.x, p.y, z);
-            let up = Vector3::z();
-            // End face: an annulus from the bore edge out to the outer radius.
+        let edge = ring(n, top, &|t| bore.radius_at(t));
+        let widest = edge
+            .iter()
+            .map(|p| p.coords.xy().norm())
+            .fold(0.0, f64::max);
+        let band = ((outer_radius_m - widest) / 4.0).min(height_m / 4.0);
+        let bore_at = |z: f64| ring(m, z, &|t| bore.radius_at(t));
+        let outer_at = |z: f64| ring(m, z, &|_| outer_radius_m);
+        let up = Some(Vector3::z());
+        // End face.
+        let middle = ring(m, top, &|t| bore.radius_at(t) + band);
+        mesh.zip_rings(&edge, &middle, up, Material::END_FACE);
+        mesh.zip_rings(&middle, &outer_at(top), up, Material::END_FACE);
+        // The underside stands on the belt at the belt's own depth; dark, so where the two fight
+        // for the depth test (seen down the bore) it looks like the belt.
+        mesh.zip_rings(
+            &outer_at(bottom),
+            &bore_at(bottom),
+            Some(-Vector3::z()),
+            Material::BORE,
+        );
+        let radial = |p: &Point3<f64>| Vector3::new(p.x, p.y, 0.0).normalize();
+        let (low, high) = (outer_at(bottom), outer_at(top));
+        for k in 0..m {
+            let (a, b) = (k, (k + 1) % m);
             mesh.quad(
-                [lift(a, top), outer(t0, top), outer(t1, top), lift(b, top)],
-                [up; 4],
-                Material::END_FACE,
-            );
-            // The underside stands on the belt at the belt's own depth; dark, so where the two
-            // fight for the depth test (seen down the bore) it looks like the belt.
-            mesh.quad(
+                [low[a], low[b], high[b], high[a]],
                 [
-                    lift(a, bottom),
-                    lift(b, bottom),
-                    outer(t1, bottom),
-                    outer(t0, bottom),
+                    radial(&low[a]),
+                    radial(&low[b]),
+                    radial(&high[b]),
+                    radial(&high[a]),
                 ],
-                [-up; 4],
-                Material::BORE,
-            );
-            let radial = |t: f64| Vector3::new(t.cos(), t.sin(), 0.0);
-            mesh.quad(
-                [
-                    outer(t0, bottom),
-                    outer(t1, bottom),
-                    outer(t1, top),
-                    outer(t0, top),
-                ],
-                [radial(t0), radial(t1), radial(t1), radial(t0)],
                 Material::PART_WALL,
             );
-            // The bore wall faces the axis.
-            mesh.flat_triangle(
-                [lift(a, bottom), lift(a, top), lift(b, top)],
-                Material::BORE,
-            );
-            mesh.flat_triangle(
-                [lift(a, bottom), lift(b, top), lift(b, bottom)],
-                Material::BORE,
-            );
         }
+        // The bore wall faces the axis.
+        let below_edge = bore_at(top - band);
+        mesh.zip_rings(&below_edge, &edge, None, Material::BORE);
+        mesh.zip_rings(&bore_at(bottom), &below_edge, None, Material::BORE);
         mesh
     }
 
@@ -241,6 +289,12 @@ fn angle(k: usize, n: usize) -> f64 {
 mod tests {
     use super::*;
 
+    /// Twice the signed area of a polygon in the xy plane.
+    fn twice_area(points: impl Iterator<Item = (f64, f64)> + Clone) -> f64 {
+        let next = points.clone().cycle().skip(1);
+        points.zip(next).map(|(a, b)| a.0 * b.1 - a.1 * b.0).sum()
+    }
+
     #[test]
     fn part_end_face_edge_follows_the_true_bore() {
         let bore = BoreForm::Lobed {
@@ -249,24 +303,45 @@ mod tests {
             lobes: 3,
             phase_rad: 0.7,
         };
-        let mesh = Mesh::axle_part(&bore, 0.019, 0.07);
-        let top: Vec<&MeshVertex> = mesh
+        let (outer, height) = (0.019, 0.07);
+        let mesh = Mesh::axle_part(&bore, outer, height);
+        let top: Vec<&[MeshVertex]> = mesh
             .vertices
-            .iter()
-            .filter(|v| v.material == Material::END_FACE)
+            .chunks_exact(3)
+            .filter(|t| t[0].material == Material::END_FACE)
             .collect();
-        assert!(!top.is_empty());
-        let mut inner = 0;
-        for v in &top {
-            assert!((v.position.z - 0.035).abs() < 1e-12);
-            let r = v.position.coords.xy().norm();
-            let t = v.position.y.atan2(v.position.x);
-            if (r - 0.019).abs() > 1e-9 {
-                assert!((r - bore.radius_at(t)).abs() < 1e-12, "{r} at {t}");
-                inner += 1;
+        let mut on_bore: Vec<(f64, f64)> = Vec::new();
+        let mut face_area = 0.0;
+        for t in &top {
+            let [a, b, c] = [t[0].position, t[1].position, t[2].position];
+            // Flat, facing up, counter-clockwise seen from above.
+            let normal = (b - a).cross(&(c - a));
+            assert!(normal.z > 0.0 && normal.xy().norm() < 1e-15, "{normal}");
+            face_area += normal.z / 2.0;
+            for p in [a, b, c] {
+                assert!((p.z - height / 2.0).abs() < 1e-12);
+                let (r, angle) = (p.coords.xy().norm(), p.y.atan2(p.x));
+                assert!(r <= outer + 1e-12 && r >= bore.radius_at(angle) - 1e-12);
+                if (r - bore.radius_at(angle)).abs() < 1e-12 {
+                    on_bore.push((p.x, p.y));
+                }
             }
         }
-        assert_eq!(inner, 3 * BORE_SEGMENTS);
+        // The face's inner edge is the bore at every one of its points...
+        on_bore.sort_by(|a, b| a.1.atan2(a.0).total_cmp(&b.1.atan2(b.0)));
+        on_bore.dedup();
+        assert_eq!(on_bore.len(), BORE_SEGMENTS);
+        // ...and the face covers exactly the outer polygon less the bore polygon: no gap, no
+        // overlap.
+        let outer_polygon = (0..OUTER_SEGMENTS).map(|k| {
+            let t = angle(k, OUTER_SEGMENTS);
+            (outer * t.cos(), outer * t.sin())
+        });
+        let exact = (twice_area(outer_polygon) - twice_area(on_bore.iter().copied())) / 2.0;
+        assert!(
+            (face_area - exact).abs() < 1e-12 * exact,
+            "{face_area} {exact}"
+        );
     }
 
     #[test]

@@ -12,6 +12,7 @@
 //!   salt-and-pepper); [`shot`]: a staged pick-station shot with drawn realism and ground truth;
 //!   [`dataset`]: an Ultralytics/YOLO dataset of such shots.
 
+mod cull;
 pub mod dataset;
 pub mod error;
 pub mod material;

@@ -2,13 +2,16 @@
 //! MSAA colour and depth targets, a readback into an [`image::RgbImage`], and an object-id pass.
 
 use std::collections::BTreeMap;
+use std::ops::Range;
 
 use bytemuck::{Pod, Zeroable};
 use image::{ImageBuffer, Luma, RgbImage};
 use nalgebra::{Isometry3, Matrix4, Point3, Vector3};
 use wgpu::util::DeviceExt;
 
+use super::cull::{Bounds, View};
 use super::error::RenderError;
+use super::mesh::MeshVertex;
 use super::scene::{ObjectKind, Scene, SceneObject};
 use crate::perception::calibration::CameraCalibration;
 
@@ -89,7 +92,7 @@ struct GpuVertex {
     position: [f32; 3],
     normal: [f32; 3],
     albedo: [f32; 3],
-    surface: [f32; 4],
+    surface: [f32; 3],
 }
 
 #[repr(C)]
@@ -115,10 +118,22 @@ struct ObjectUniform {
 /// A scene's meshes on the device: one vertex buffer, one draw range per object.
 pub struct GpuScene {
     vertices: wgpu::Buffer,
-    ranges: Vec<std::ops::Range<u32>>,
+    /// Each object's vertices: its plain triangles from `start` to `stained`, then its
+    /// stainable ones up to `end`.
+    ranges: Vec<ObjectRange>,
     /// Object indices, nearest kinds first, so early depth tests skip hidden fragments.
     draw_order: Vec<usize>,
     poses: Vec<Isometry3<f64>>,
+    /// Each object's extent, for culling.
+    bounds: Vec<Bounds>,
+}
+
+/// Where an object's vertices lie in a [`GpuScene`]'s buffer.
+#[derive(Debug, Clone, Copy)]
+struct ObjectRange {
+    start: u32,
+    stained: u32,
+    end: u32,
 }
 
 impl GpuScene {
@@ -140,6 +155,14 @@ impl GpuScene {
     }
 }
 
+/// The shading pipelines for one light count.
+struct Shaded {
+    /// Surfaces without stains.
+    plain: wgpu::RenderPipeline,
+    /// Stainable surfaces.
+    stained: wgpu::RenderPipeline,
+}
+
 struct Targets {
     width: u32,
     height: u32,
@@ -157,7 +180,10 @@ pub struct Renderer {
     queue: wgpu::Queue,
     info: wgpu::AdapterInfo,
     options: RendererOptions,
-    shaded: wgpu::RenderPipeline,
+    module: wgpu::ShaderModule,
+    layout: wgpu::PipelineLayout,
+    /// Shading pipelines by light count, built when a count is first used.
+    shaded: BTreeMap<usize, Shaded>,
     ids: wgpu::RenderPipeline,
     globals: wgpu::Buffer,
     globals_group: wgpu::BindGroup,
@@ -241,55 +267,7 @@ impl Renderer {
             bind_group_layouts: &[Some(&globals_layout), Some(&object_layout)],
             immediate_size: 0,
         });
-        let attributes = wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x3, 3 => Float32x4];
-        let vertex_layout = wgpu::VertexBufferLayout {
-            array_stride: std::mem::size_of::<GpuVertex>() as u64,
-            step_mode: wgpu::VertexStepMode::Vertex,
-            attributes: &attributes,
-        };
-        let pipeline = |entry: &str, format: wgpu::TextureFormat, samples: u32| {
-            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                label: Some(entry),
-                layout: Some(&layout),
-                vertex: wgpu::VertexState {
-                    module: &module,
-                    entry_point: Some("vs_main"),
-                    compilation_options: wgpu::PipelineCompilationOptions::default(),
-                    buffers: &[Some(vertex_layout.clone())],
-                },
-                primitive: wgpu::PrimitiveState {
-                    topology: wgpu::PrimitiveTopology::TriangleList,
-                    cull_mode: None,
-                    ..wgpu::PrimitiveState::default()
-                },
-                depth_stencil: Some(wgpu::DepthStencilState {
-                    format: DEPTH_FORMAT,
-                    depth_write_enabled: Some(true),
-                    depth_compare: Some(wgpu::CompareFunction::Less),
-                    stencil: wgpu::StencilState::default(),
-                    bias: wgpu::DepthBiasState::default(),
-                }),
-                multisample: wgpu::MultisampleState {
-                    count: samples,
-                    mask: !0,
-                    alpha_to_coverage_enabled: false,
-                },
-                fragment: Some(wgpu::FragmentState {
-                    module: &module,
-                    entry_point: Some(entry),
-                    compilation_options: wgpu::PipelineCompilationOptions::default(),
-                    targets: &[Some(wgpu::ColorTargetState {
-                        format,
-                        blend: None,
-                        write_mask: wgpu::ColorWrites::ALL,
-                    })],
-                }),
-                multiview_mask: None,
-                cache: None,
-            })
-        };
-        let shaded = pipeline("fs_main", COLOUR_FORMAT, options.msaa_samples);
-        let ids = pipeline("fs_id", ID_FORMAT, 1);
+        let ids = build_pipeline(&device, &module, &layout, "fs_id", ID_FORMAT, 1, 0);
         let globals = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("globals"),
             size: std::mem::size_of::<Globals>() as u64,
@@ -309,7 +287,9 @@ impl Renderer {
             queue,
             info,
             options,
-            shaded,
+            module,
+            layout,
+            shaded: BTreeMap::new(),
             ids,
             globals,
             globals_group,
@@ -338,27 +318,25 @@ impl Renderer {
     pub fn upload(&self, scene: &Scene) -> GpuScene {
         let mut vertices = Vec::with_capacity(scene.triangle_count() * 3);
         let mut ranges = Vec::with_capacity(scene.objects.len());
+        let mut bounds = Vec::with_capacity(scene.objects.len());
         for object in &scene.objects {
             let start = vertices.len() as u32;
-            vertices.extend(object.mesh.vertices.iter().map(|v| {
-                let m = v.material;
-                GpuVertex {
-                    position: [
-                        v.position.x as f32,
-                        v.position.y as f32,
-                        v.position.z as f32,
-                    ],
-                    normal: [v.normal.x as f32, v.normal.y as f32, v.normal.z as f32],
-                    albedo: m.albedo,
-                    surface: [
-                        m.specular,
-                        m.shininess,
-                        m.sheen,
-                        f32::from(u8::from(m.stainable)),
-                    ],
+            // Plain triangles first, then the stainable ones (a triangle has one material).
+            let mut stained = start;
+            for stainable in [false, true] {
+                stained = vertices.len() as u32;
+                for triangle in object.mesh.vertices.chunks_exact(3) {
+                    if triangle[0].material.stainable == stainable {
+                        vertices.extend(triangle.iter().map(gpu_vertex));
+                    }
                 }
-            }));
-            ranges.push(start..vertices.len() as u32);
+            }
+            ranges.push(ObjectRange {
+                start,
+                stained,
+                end: vertices.len() as u32,
+            });
+            bounds.push(Bounds::of(&object.mesh.vertices));
         }
         // Front to back for a camera above the belt: parts and the bottle, the robot, the belt,
         // then the rest (frame, bins, floor). Software rasterisers shade far less this way.
@@ -385,6 +363,7 @@ impl Renderer {
             ranges,
             draw_order,
             poses: scene.objects.iter().map(|o| o.world_from_object).collect(),
+            bounds,
         }
     }
 
@@ -396,43 +375,73 @@ impl Renderer {
     ) -> Result<RgbImage, RenderError> {
         let s = self.options.supersample;
         let (w, h) = (exposure.width_px * s, exposure.height_px * s);
-        self.prepare(scene, exposure)?;
+        let visible = self.prepare(scene, exposure)?;
         let samples = self.options.msaa_samples;
         self.ensure_targets(w, h, false, samples)?;
-        let Some(targets) = self.targets.get(&(w, h, false)) else {
+        let lights = exposure.lights.len();
+        if !self.shaded.contains_key(&lights) {
+            let build = |entry| {
+                build_pipeline(
+                    &self.device,
+                    &self.module,
+                    &self.layout,
+                    entry,
+                    COLOUR_FORMAT,
+                    samples,
+                    lights,
+                )
+            };
+            let shaded = Shaded {
+                plain: build("fs_main"),
+                stained: build("fs_stained"),
+            };
+            self.shaded.insert(lights, shaded);
+        }
+        let (Some(targets), Some(shaded)) =
+            (self.targets.get(&(w, h, false)), self.shaded.get(&lights))
+        else {
             return Err(RenderError::Gpu("render targets missing".into()));
         };
         let (view, resolve) = match &targets.colour_msaa {
             Some(msaa) => (msaa, Some(&targets.colour_view)),
             None => (&targets.colour_view, None),
         };
-        let rgba = self.draw_and_read(scene, targets, view, resolve, &self.shaded)?;
-        let mut image = RgbImage::new(exposure.width_px, exposure.height_px);
-        let row = targets.padded_row as usize;
-        if s == 1 {
-            let width = exposure.width_px as usize;
-            for (out_row, in_row) in image.chunks_exact_mut(width * 3).zip(rgba.chunks(row)) {
-                for (out, px) in out_row.chunks_exact_mut(3).zip(in_row.chunks_exact(4)) {
-                    out.copy_from_slice(&px[..3]);
-                }
-            }
-            return Ok(image);
-        }
-        let norm = 1.0 / f64::from(s * s);
-        for (x, y, pixel) in image.enumerate_pixels_mut() {
-            let mut sum = [0u32; 3];
-            for dy in 0..s {
-                let base = ((y * s + dy) as usize) * row;
-                for dx in 0..s {
-                    let i = base + ((x * s + dx) as usize) * 4;
-                    for c in 0..3 {
-                        sum[c] += u32::from(rgba[i + c]);
+        let (width, height) = (exposure.width_px, exposure.height_px);
+        let frame = Frame {
+            scene,
+            visible: &visible,
+            targets,
+            view,
+            resolve,
+        };
+        self.draw_and_read(&frame, Pipelines::Shaded(shaded), |rgba| {
+            let row = targets.padded_row as usize;
+            let mut image = RgbImage::new(width, height);
+            if s == 1 {
+                let width = width as usize;
+                for (out_row, in_row) in image.chunks_exact_mut(width * 3).zip(rgba.chunks(row)) {
+                    for (out, px) in out_row.chunks_exact_mut(3).zip(in_row.chunks_exact(4)) {
+                        out.copy_from_slice(&px[..3]);
                     }
                 }
+                return image;
             }
-            pixel.0 = sum.map(|v| (f64::from(v) * norm).round() as u8);
-        }
-        Ok(image)
+            let norm = 1.0 / f64::from(s * s);
+            for (x, y, pixel) in image.enumerate_pixels_mut() {
+                let mut sum = [0u32; 3];
+                for dy in 0..s {
+                    let base = ((y * s + dy) as usize) * row;
+                    for dx in 0..s {
+                        let i = base + ((x * s + dx) as usize) * 4;
+                        for c in 0..3 {
+                            sum[c] += u32::from(rgba[i + c]);
+                        }
+                    }
+                }
+                pixel.0 = sum.map(|v| (f64::from(v) * norm).round() as u8);
+            }
+            image
+        })
     }
 
     /// Renders which object covers each pixel centre (no anti-aliasing): the object's index in
@@ -443,28 +452,41 @@ impl Renderer {
         exposure: &Exposure,
     ) -> Result<ImageBuffer<Luma<u32>, Vec<u32>>, RenderError> {
         let (w, h) = (exposure.width_px, exposure.height_px);
-        self.prepare(scene, exposure)?;
+        let visible = self.prepare(scene, exposure)?;
         self.ensure_targets(w, h, true, 1)?;
         let Some(targets) = self.targets.get(&(w, h, true)) else {
             return Err(RenderError::Gpu("render targets missing".into()));
         };
-        let bytes = self.draw_and_read(scene, targets, &targets.colour_view, None, &self.ids)?;
-        let row = targets.padded_row as usize;
-        let mut ids: ImageBuffer<Luma<u32>, Vec<u32>> = ImageBuffer::new(w, h);
-        for (x, y, pixel) in ids.enumerate_pixels_mut() {
-            let i = y as usize * row + x as usize * 4;
-            pixel.0 = [u32::from_le_bytes([
-                bytes[i],
-                bytes[i + 1],
-                bytes[i + 2],
-                bytes[i + 3],
-            ])];
-        }
-        Ok(ids)
+        let frame = Frame {
+            scene,
+            visible: &visible,
+            targets,
+            view: &targets.colour_view,
+            resolve: None,
+        };
+        self.draw_and_read(&frame, Pipelines::Ids(&self.ids), |bytes| {
+            let row = targets.padded_row as usize;
+            let mut ids: ImageBuffer<Luma<u32>, Vec<u32>> = ImageBuffer::new(w, h);
+            for (x, y, pixel) in ids.enumerate_pixels_mut() {
+                let i = y as usize * row + x as usize * 4;
+                pixel.0 = [u32::from_le_bytes([
+                    bytes[i],
+                    bytes[i + 1],
+                    bytes[i + 2],
+                    bytes[i + 3],
+                ])];
+            }
+            ids
+        })
     }
 
-    /// Writes the frame's and the objects' uniforms.
-    fn prepare(&mut self, scene: &GpuScene, exposure: &Exposure) -> Result<(), RenderError> {
+    /// Writes the frame's and the objects' uniforms; returns the objects the camera may see
+    /// (in its view frustum and not hidden behind a convex occluder), in drawing order.
+    fn prepare(
+        &mut self,
+        scene: &GpuScene,
+        exposure: &Exposure,
+    ) -> Result<Vec<usize>, RenderError> {
         if exposure.lights.len() > MAX_LIGHTS || exposure.stains.len() > MAX_STAIN_BLOBS {
             return Err(RenderError::Unsupported {
                 adapter: self.info.name.clone(),
@@ -492,12 +514,7 @@ impl Renderer {
             globals.stain_centre[i] = [c.x as f32, c.y as f32, c.z as f32, stain.radius_m as f32];
             globals.stain_params[i] = [stain.transmission as f32, stain.soft_edge as f32, 0.0, 0.0];
         }
-        globals.counts = [
-            exposure.lights.len() as u32,
-            exposure.stains.len() as u32,
-            0,
-            0,
-        ];
+        globals.counts = [0, exposure.stains.len() as u32, 0, 0];
         self.queue
             .write_buffer(&self.globals, 0, bytemuck::bytes_of(&globals));
 
@@ -526,16 +543,17 @@ impl Renderer {
                 });
             self.objects = Some((buffer, group, count));
         }
-        let uniforms: Vec<ObjectUniform> = scene
+        let camera_from_object: Vec<Isometry3<f64>> = scene
             .poses
             .iter()
+            .map(|world_from_object| camera_from_world * world_from_object)
+            .collect();
+        let uniforms: Vec<ObjectUniform> = camera_from_object
+            .iter()
             .enumerate()
-            .map(|(i, world_from_object)| {
-                let camera_from_object: Matrix4<f32> = (camera_from_world * world_from_object)
-                    .to_homogeneous()
-                    .cast::<f32>();
+            .map(|(i, pose)| {
                 let mut matrix = [0.0f32; 16];
-                matrix.copy_from_slice(camera_from_object.as_slice());
+                matrix.copy_from_slice(pose.to_homogeneous().cast::<f32>().as_slice());
                 ObjectUniform {
                     camera_from_object: matrix,
                     id: [i as u32 + 1, 0, 0, 0],
@@ -549,7 +567,8 @@ impl Renderer {
             self.queue
                 .write_buffer(buffer, 0, bytemuck::cast_slice(&uniforms));
         }
-        Ok(())
+        let view = View::new(camera, exposure.width_px, exposure.height_px, NEAR_M, FAR_M);
+        Ok(view.visible(&scene.bounds, &camera_from_object, &scene.draw_order))
     }
 
     fn ensure_targets(
@@ -625,17 +644,18 @@ impl Renderer {
         Ok(())
     }
 
-    fn draw_and_read(
+    /// Draws a frame, copies its colour target out and hands the mapped rows (`padded_row`
+    /// bytes apart) to `read`.
+    fn draw_and_read<T>(
         &self,
-        scene: &GpuScene,
-        targets: &Targets,
-        view: &wgpu::TextureView,
-        resolve: Option<&wgpu::TextureView>,
-        pipeline: &wgpu::RenderPipeline,
-    ) -> Result<Vec<u8>, RenderError> {
+        frame: &Frame,
+        pipelines: Pipelines,
+        read: impl FnOnce(&[u8]) -> T,
+    ) -> Result<T, RenderError> {
         let Some((_, object_group, _)) = &self.objects else {
             return Err(RenderError::Gpu("object uniforms missing".into()));
         };
+        let (scene, targets) = (frame.scene, frame.targets);
         let scope = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
         let mut encoder = self
             .device
@@ -646,12 +666,17 @@ impl Renderer {
             let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
                 label: Some("frame"),
                 color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                    view,
+                    view: frame.view,
                     depth_slice: None,
-                    resolve_target: resolve,
+                    resolve_target: frame.resolve,
                     ops: wgpu::Operations {
                         load: wgpu::LoadOp::Clear(wgpu::Color::BLACK),
-                        store: wgpu::StoreOp::Store,
+                        // Only the resolved image is read.
+                        store: if frame.resolve.is_some() {
+                            wgpu::StoreOp::Discard
+                        } else {
+                            wgpu::StoreOp::Store
+                        },
                     },
                 })],
                 depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
@@ -666,16 +691,26 @@ impl Renderer {
                 occlusion_query_set: None,
                 multiview_mask: None,
             });
-            pass.set_pipeline(pipeline);
             pass.set_bind_group(0, &self.globals_group, &[]);
             pass.set_vertex_buffer(0, scene.vertices.slice(..));
-            for &i in &scene.draw_order {
-                let range = &scene.ranges[i];
-                if range.is_empty() {
-                    continue;
+            let mut draw = |pipeline: &wgpu::RenderPipeline,
+                            part: fn(&ObjectRange) -> Range<u32>| {
+                pass.set_pipeline(pipeline);
+                for &i in frame.visible {
+                    let range = part(&scene.ranges[i]);
+                    if !range.is_empty() {
+                        pass.set_bind_group(1, object_group, &[(i as u64 * OBJECT_STRIDE) as u32]);
+                        pass.draw(range, 0..1);
+                    }
                 }
-                pass.set_bind_group(1, object_group, &[(i as u64 * OBJECT_STRIDE) as u32]);
-                pass.draw(range.clone(), 0..1);
+            };
+            match pipelines {
+                Pipelines::Shaded(shaded) => {
+                    // Stainable end faces lie nearest the camera: first, for the depth test.
+                    draw(&shaded.stained, |r| r.stained..r.end);
+                    draw(&shaded.plain, |r| r.start..r.stained);
+                }
+                Pipelines::Ids(ids) => draw(ids, |r| r.start..r.end),
             }
         }
         encoder.copy_texture_to_buffer(
@@ -716,15 +751,32 @@ impl Renderer {
             Ok(Err(e)) => return Err(RenderError::Readback(e.to_string())),
             Err(e) => return Err(RenderError::Readback(e.to_string())),
         }
-        let bytes = {
+        let result = {
             let view = slice
                 .get_mapped_range()
                 .map_err(|e| RenderError::Readback(e.to_string()))?;
-            view.to_vec()
+            read(&view)
         };
         targets.readback.unmap();
-        Ok(bytes)
+        Ok(result)
     }
+}
+
+/// One frame to draw: the scene, the objects in view, the targets and the views drawn into.
+struct Frame<'a> {
+    scene: &'a GpuScene,
+    visible: &'a [usize],
+    targets: &'a Targets,
+    view: &'a wgpu::TextureView,
+    resolve: Option<&'a wgpu::TextureView>,
+}
+
+/// The pipelines a frame is drawn with.
+enum Pipelines<'a> {
+    /// The shaded image.
+    Shaded(&'a Shaded),
+    /// Object ids.
+    Ids(&'a wgpu::RenderPipeline),
 }
 
 /// The clip-space projection that puts a camera-frame point where `camera.project` puts it:
@@ -742,4 +794,82 @@ fn clip_from_camera(camera: &CameraCalibration, width_px: u32, height_px: u32) -
     let mut out = [0.0f32; 16];
     out.copy_from_slice(m.cast::<f32>().as_slice());
     out
+}
+
+/// A render pipeline of the camera shader: fragment entry `entry` into `format` at `samples`
+/// samples, the shader's light loop fixed at `light_count`. Back faces are culled: every mesh
+/// is closed with outward, counter-clockwise faces, so a back face is always hidden.
+fn build_pipeline(
+    device: &wgpu::Device,
+    module: &wgpu::ShaderModule,
+    layout: &wgpu::PipelineLayout,
+    entry: &str,
+    format: wgpu::TextureFormat,
+    samples: u32,
+    light_count: usize,
+) -> wgpu::RenderPipeline {
+    let attributes =
+        wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x3, 3 => Float32x3];
+    let constants = [("LIGHT_COUNT", light_count as f64)];
+    device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        label: Some(entry),
+        layout: Some(layout),
+        vertex: wgpu::VertexState {
+            module,
+            entry_point: Some("vs_main"),
+            compilation_options: wgpu::PipelineCompilationOptions::default(),
+            buffers: &[Some(wgpu::VertexBufferLayout {
+                array_stride: std::mem::size_of::<GpuVertex>() as u64,
+                step_mode: wgpu::VertexStepMode::Vertex,
+                attributes: &attributes,
+            })],
+        },
+        primitive: wgpu::PrimitiveState {
+            topology: wgpu::PrimitiveTopology::TriangleList,
+            front_face: wgpu::FrontFace::Ccw,
+            cull_mode: Some(wgpu::Face::Back),
+            ..wgpu::PrimitiveState::default()
+        },
+        depth_stencil: Some(wgpu::DepthStencilState {
+            format: DEPTH_FORMAT,
+            depth_write_enabled: Some(true),
+            depth_compare: Some(wgpu::CompareFunction::Less),
+            stencil: wgpu::StencilState::default(),
+            bias: wgpu::DepthBiasState::default(),
+        }),
+        multisample: wgpu::MultisampleState {
+            count: samples,
+            mask: !0,
+            alpha_to_coverage_enabled: false,
+        },
+        fragment: Some(wgpu::FragmentState {
+            module,
+            entry_point: Some(entry),
+            compilation_options: wgpu::PipelineCompilationOptions {
+                constants: &constants,
+                ..wgpu::PipelineCompilationOptions::default()
+            },
+            targets: &[Some(wgpu::ColorTargetState {
+                format,
+                blend: None,
+                write_mask: wgpu::ColorWrites::ALL,
+            })],
+        }),
+        multiview_mask: None,
+        cache: None,
+    })
+}
+
+fn gpu_vertex(v: &MeshVertex) -> GpuVertex {
+    let m = v.material;
+    GpuVertex {
+        position: [
+            v.position.x as f32,
+            v.position.y as f32,
+            v.position.z as f32,
+        ],
+        normal: [v.normal.x as f32, v.normal.y as f32, v.normal.z as f32],
+        albedo: m.albedo,
+        surface: [m.specular, m.shininess, m.sheen],
+    }
 }

@@ -112,24 +112,14 @@ impl Scene {
                 kind: ObjectKind::Scenery,
             });
         }
+        let mut scene = Self { objects };
         if let Some(world_from_part) = cell.body_pose(cell.part_body) {
-            let part = &cell.part;
-            objects.push(SceneObject {
-                name: "part".into(),
-                body: Some(cell.part_body),
-                world_from_object: world_from_part,
-                mesh: Arc::new(Mesh::axle_part(
-                    &part.bore,
-                    part.outer_radius_m,
-                    part.height_m,
-                )),
-                kind: ObjectKind::Part(part.clone()),
-            });
+            scene.push_part(cell.part_body, world_from_part, &cell.part);
         }
         if let Some(bottle) = cell.bottle_body
             && let Some(world_from_bottle) = cell.body_pose(bottle)
         {
-            objects.push(SceneObject {
+            scene.objects.push(SceneObject {
                 name: "bottle".into(),
                 body: Some(bottle),
                 world_from_object: world_from_bottle,
@@ -140,7 +130,27 @@ impl Scene {
                 kind: ObjectKind::Bottle,
             });
         }
-        Self { objects }
+        scene
+    }
+
+    /// Adds a part on `body` at `world_from_part` (a stream's further parts).
+    pub fn push_part(
+        &mut self,
+        body: RigidBodyHandle,
+        world_from_part: Isometry3<f64>,
+        part: &PartInstance,
+    ) {
+        self.objects.push(SceneObject {
+            name: "part".into(),
+            body: Some(body),
+            world_from_object: world_from_part,
+            mesh: Arc::new(Mesh::axle_part(
+                &part.bore,
+                part.outer_radius_m,
+                part.height_m,
+            )),
+            kind: ObjectKind::Part(part.clone()),
+        });
     }
 
     /// Moves every object of `body` by `offset` (world frame), as if the body had been placed

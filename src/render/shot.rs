@@ -186,14 +186,26 @@ impl Shot {
         if let Some(bottle) = cell.bottle_body {
             scene.translate_body(bottle, &offset);
         }
-        let exposure = draw_exposure(scenario, rig, sensor, &scene, &mut rng);
-        let sensor_draw = SensorDraw::draw(sensor, &mut rng);
-        Ok(Self {
+        Ok(Self::of_scene(scenario, rig, sensor, scene, &mut rng))
+    }
+
+    /// A shot of `scene` as it stands (the closed loop's view of the live cell): the frame's
+    /// camera pose jitter, lights, stains and sensor effects drawn from `rng`.
+    pub fn of_scene(
+        scenario: &Scenario,
+        rig: &CameraRig,
+        sensor: &SensorSection,
+        scene: Scene,
+        rng: &mut SimRng,
+    ) -> Self {
+        let exposure = draw_exposure(scenario, rig, sensor, &scene, rng);
+        let sensor_draw = SensorDraw::draw(sensor, rng);
+        Self {
             scene,
             exposure,
             rig: *rig,
             sensor: sensor_draw,
-        })
+        }
     }
 
     /// Renders the shot: the image as the sensor delivers it.

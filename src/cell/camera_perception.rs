@@ -1,0 +1,339 @@
+//! The cell's camera perception (`--perception camera`, the product): the pick station rendered
+//! as the calibrated camera sees it, the detector's boxes, the paper's metrology inside the part's
+//! box, and what those mean in the world through the calibration.
+//!
+//! Everything here works from the image and the calibration alone; the world is only rendered,
+//! never read. Renderers and detectors are expensive to make, so each worker thread takes one from
+//! a pool and puts it back: results do not depend on which instance served a trial.
+
+use std::path::PathBuf;
+use std::sync::Mutex;
+use std::time::Instant;
+
+use image::{GrayImage, RgbImage};
+use nalgebra::Point3;
+
+use super::bottle_fit::{BottleFitter, BottlePose};
+use crate::detect::{Detection, Detector};
+use crate::perception::calibration::{CameraCalibration, PlaneBore};
+use crate::perception::roundness::DEFAULT_MAX_UPR;
+use crate::perception::{Bore, BoreDetector};
+use crate::render::{CameraRig, Renderer, RendererOptions, Scene, Shot};
+use crate::rng::SimRng;
+use crate::scenario::Scenario;
+
+/// Share of a part box's side added on every side before the metrology looks inside it.
+const BOX_MARGIN: f64 = 0.15;
+/// A measured bore diameter further than this from the detected type's nominal one contradicts
+/// the detection, m (neighbouring types differ by at least 4 mm).
+const TYPE_DIAMETER_TOLERANCE_M: f64 = 0.002;
+
+/// Why the camera pipeline could not run at all (as opposed to finding nothing).
+#[derive(Debug, thiserror::Error)]
+pub enum CameraPerceptionError {
+    /// No renderer could be made or a frame could not be rendered.
+    #[error("camera: {0}")]
+    Render(#[from] crate::render::RenderError),
+    /// The detector model could not be loaded or run.
+    #[error("detector: {0}")]
+    Detect(#[from] crate::detect::DetectError),
+    /// The scenario's camera cannot see the pick station.
+    #[error("camera: {0}")]
+    Camera(String),
+    /// A scenario part type that the detector was not trained on.
+    #[error(
+        "part_types: type {name:?} is not a class of the detector model {model} (classes: {classes})"
+    )]
+    UnknownType {
+        /// The scenario's type name.
+        name: String,
+        /// The model file.
+        model: PathBuf,
+        /// The model's classes.
+        classes: String,
+    },
+}
+
+/// What the camera saw of one part.
+#[derive(Debug, Clone)]
+pub struct PartSighting {
+    /// Index into [`Sighting::detections`].
+    pub detection: usize,
+    /// Index of the detected type in the scenario's `part_types`.
+    pub type_index: usize,
+    /// End-face centre in the world: the measured bore centre, or the box centre on the end-face
+    /// plane when no bore was measured.
+    pub centre_in_world: Point3<f64>,
+    /// The bore as fitted in the image (full-image pixels) and measured on the end-face plane.
+    pub bore: Option<(Bore, PlaneBore)>,
+    /// Set when the measurement contradicts the detected type (the sorter rejects such a part).
+    pub inconsistency: Option<String>,
+}
+
+/// What the camera saw of one bottle: every pose that explains its box about equally well.
+#[derive(Debug, Clone)]
+pub struct BottleSighting {
+    /// Index into [`Sighting::detections`].
+    pub detection: usize,
+    /// The poses, best first.
+    pub poses: Vec<BottlePose>,
+}
+
+/// One look at the pick station.
+#[derive(Debug, Clone)]
+pub struct Sighting {
+    /// The image as the sensor delivered it.
+    pub image: RgbImage,
+    /// The detector's boxes, in image pixels.
+    pub detections: Vec<Detection>,
+    /// The part at the pick station, when one was detected.
+    pub target: Option<PartSighting>,
+    /// Other parts in view (obstacles), their centres on the end-face plane from their boxes.
+    pub other_parts: Vec<PartSighting>,
+    /// Bottles in view.
+    pub bottles: Vec<BottleSighting>,
+    /// Wall-clock cost of rendering, detection and metrology, ms.
+    pub render_ms: f64,
+    /// Detector time, ms.
+    pub detect_ms: f64,
+    /// Metrology time (bore finding and fits, bottle pose fits), ms.
+    pub metrology_ms: f64,
+}
+
+/// The camera pipeline shared by the worker threads of a batch.
+pub struct CameraPerception {
+    rig: CameraRig,
+    options: RendererOptions,
+    model_path: PathBuf,
+    renderers: Mutex<Vec<Renderer>>,
+    detectors: Mutex<Vec<Detector>>,
+    bore_detector: BoreDetector,
+    /// The part types' detector classes, by scenario type index.
+    type_of_class: Vec<Option<usize>>,
+    bottle_class: Option<usize>,
+    bottle_fitter: BottleFitter,
+}
+
+impl std::fmt::Debug for CameraPerception {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("CameraPerception")
+            .field("rig", &self.rig)
+            .field("model_path", &self.model_path)
+            .finish_non_exhaustive()
+    }
+}
+
+/// Takes an instance from `pool`, or makes one.
+fn take<T, E>(pool: &Mutex<Vec<T>>, make: impl FnOnce() -> Result<T, E>) -> Result<T, E> {
+    let pooled = pool.lock().ok().and_then(|mut items| items.pop());
+    match pooled {
+        Some(item) => Ok(item),
+        None => make(),
+    }
+}
+
+/// Puts an instance back into `pool`.
+fn give_back<T>(pool: &Mutex<Vec<T>>, item: T) {
+    if let Ok(mut items) = pool.lock() {
+        items.push(item);
+    }
+}
+
+impl CameraPerception {
+    /// The pipeline for `scenario` with the detector model at `model_path`: makes one renderer
+    /// and loads the model once, so that a missing adapter or model fails here, before any trial.
+    pub fn new(scenario: &Scenario, model_path: PathBuf) -> Result<Self, CameraPerceptionError> {
+        let rig = CameraRig::from_scenario(scenario)
+            .map_err(|e| CameraPerceptionError::Camera(e.to_string()))?;
+        let options = RendererOptions {
+            msaa_samples: scenario.camera.msaa_samples,
+            supersample: scenario.camera.supersample,
+        };
+        let renderer = Renderer::new(options)?;
+        let detector = Detector::load(&model_path)?;
+        let classes = detector.class_names().to_vec();
+        let class_index = |name: &str| classes.iter().position(|c| c == name);
+        let mut type_of_class = vec![None; classes.len()];
+        for (type_index, part_type) in scenario.part_types.iter().enumerate() {
+            let Some(class) = class_index(&part_type.name) else {
+                return Err(CameraPerceptionError::UnknownType {
+                    name: part_type.name.clone(),
+                    model: model_path,
+                    classes: classes.join(", "),
+                });
+            };
+            type_of_class[class] = Some(type_index);
+        }
+        let bottle_fitter = BottleFitter::new(rig.calibration, &scenario.bottle);
+        Ok(Self {
+            rig,
+            options,
+            model_path,
+            renderers: Mutex::new(vec![renderer]),
+            detectors: Mutex::new(vec![detector]),
+            bore_detector: BoreDetector::default(),
+            type_of_class,
+            bottle_class: class_index("bottle"),
+            bottle_fitter,
+        })
+    }
+
+    /// The calibrated camera.
+    pub fn rig(&self) -> &CameraRig {
+        &self.rig
+    }
+
+    /// Renders `scene` with the frame's realism drawn from `rng`, detects, and measures. The part
+    /// whose box centre lies nearest `station_in_world`'s pixel is the target; parts and bottles
+    /// stand on the belt's top surface at `belt_top_z_m`.
+    pub fn look(
+        &self,
+        scenario: &Scenario,
+        scene: Scene,
+        rng: &mut SimRng,
+        station_in_world: &Point3<f64>,
+        belt_top_z_m: f64,
+    ) -> Result<Sighting, CameraPerceptionError> {
+        let started = Instant::now();
+        let shot = Shot::of_scene(scenario, &self.rig, &scenario.sensor, scene, rng);
+        let mut renderer = take(&self.renderers, || Renderer::new(self.options))?;
+        let image = shot.render(&mut renderer);
+        give_back(&self.renderers, renderer);
+        let image = image?;
+        let render_ms = started.elapsed().as_secs_f64() * 1e3;
+
+        let started = Instant::now();
+        let mut detector = take(&self.detectors, || Detector::load(&self.model_path))?;
+        let detections = detector.detect(&image);
+        give_back(&self.detectors, detector);
+        let detections = detections?;
+        let detect_ms = started.elapsed().as_secs_f64() * 1e3;
+
+        let started = Instant::now();
+        let gray = image::imageops::grayscale(&image);
+        let station_px = self.rig.calibration.project(station_in_world);
+        let mut target: Option<(f64, usize)> = None;
+        let mut parts = Vec::new();
+        let mut bottles = Vec::new();
+        for (index, detection) in detections.iter().enumerate() {
+            if Some(detection.class_id) == self.bottle_class {
+                bottles.push(BottleSighting {
+                    detection: index,
+                    poses: self
+                        .bottle_fitter
+                        .fit(&detection.box_px.map(f64::from), belt_top_z_m),
+                });
+                continue;
+            }
+            let Some(type_index) = self
+                .type_of_class
+                .get(detection.class_id)
+                .copied()
+                .flatten()
+            else {
+                continue;
+            };
+            let [x0, y0, x1, y1] = detection.box_px.map(f64::from);
+            let centre_px = [(x0 + x1) / 2.0, (y0 + y1) / 2.0];
+            if let Some([u, v]) = station_px {
+                let d = (centre_px[0] - u).hypot(centre_px[1] - v);
+                if target.is_none_or(|(best, _)| d < best) {
+                    target = Some((d, parts.len()));
+                }
+            }
+            parts.push((index, type_index, centre_px));
+        }
+        let mut target_sighting = None;
+        let mut other_parts = Vec::new();
+        for (k, (index, type_index, centre_px)) in parts.into_iter().enumerate() {
+            let is_target = target.is_some_and(|(_, t)| t == k);
+            let face_m = belt_top_z_m + scenario.part_types[type_index].height_mm / 1000.0;
+            let calibration = self.rig.calibration.with_end_face_height(face_m);
+            // Only the target's bore is measured; other parts are obstacles.
+            let bore = if is_target {
+                measure_in_box(
+                    &self.bore_detector,
+                    &gray,
+                    &detections[index].box_px.map(f64::from),
+                    &calibration,
+                )
+            } else {
+                None
+            };
+            let centre_in_world = match &bore {
+                Some((_, plane)) => plane.centre_in_world,
+                None => match calibration.pixel_to_plane(centre_px[0], centre_px[1]) {
+                    Ok(p) => p,
+                    Err(_) => continue,
+                },
+            };
+            let nominal_m = scenario.part_types[type_index].bore_diameter_mm / 1000.0;
+            let inconsistency = bore.as_ref().and_then(|(_, plane)| {
+                ((plane.diameter_m - nominal_m).abs() > TYPE_DIAMETER_TOLERANCE_M).then(|| {
+                    format!(
+                        "measured bore {:.2} mm contradicts the detected {} ({:.0} mm)",
+                        plane.diameter_m * 1e3,
+                        scenario.part_types[type_index].name,
+                        nominal_m * 1e3
+                    )
+                })
+            });
+            let sighting = PartSighting {
+                detection: index,
+                type_index,
+                centre_in_world,
+                bore,
+                inconsistency,
+            };
+            if is_target {
+                target_sighting = Some(sighting);
+            } else {
+                other_parts.push(sighting);
+            }
+        }
+        let metrology_ms = started.elapsed().as_secs_f64() * 1e3;
+        Ok(Sighting {
+            image,
+            detections,
+            target: target_sighting,
+            other_parts,
+            bottles,
+            render_ms,
+            detect_ms,
+            metrology_ms,
+        })
+    }
+}
+
+/// Finds the bore inside a part's box (widened by `BOX_MARGIN`, 15 % a side) and measures it on the
+/// end-face plane; the bore nearest the box centre wins. `None` when there is none.
+pub fn measure_in_box(
+    bore_detector: &BoreDetector,
+    gray: &GrayImage,
+    box_px: &[f64; 4],
+    calibration: &CameraCalibration,
+) -> Option<(Bore, PlaneBore)> {
+    let [x0, y0, x1, y1] = *box_px;
+    let (mx, my) = ((x1 - x0) * BOX_MARGIN, (y1 - y0) * BOX_MARGIN);
+    let clamp = |v: f64, size: u32| v.clamp(0.0, f64::from(size)) as u32;
+    let (left, top) = (clamp(x0 - mx, gray.width()), clamp(y0 - my, gray.height()));
+    let right = clamp((x1 + mx).ceil() + 1.0, gray.width());
+    let bottom = clamp((y1 + my).ceil() + 1.0, gray.height());
+    if right <= left || bottom <= top {
+        return None;
+    }
+    let crop = image::imageops::crop_imm(gray, left, top, right - left, bottom - top).to_image();
+    let bores = bore_detector.detect(&crop).ok()?;
+    let centre = [(x0 + x1) / 2.0, (y0 + y1) / 2.0];
+    let (dx, dy) = (f64::from(left), f64::from(top));
+    let bore = bores
+        .into_iter()
+        .map(|bore| bore.translated(dx, dy))
+        .filter(|b| (x0..=x1).contains(&b.centre_px[0]) && (y0..=y1).contains(&b.centre_px[1]))
+        .min_by(|a, b| {
+            let d = |b: &Bore| (b.centre_px[0] - centre[0]).hypot(b.centre_px[1] - centre[1]);
+            d(a).total_cmp(&d(b))
+        })?;
+    let plane = calibration.measure_on_plane(&bore, DEFAULT_MAX_UPR).ok()?;
+    Some((bore, plane))
+}

@@ -1,0 +1,132 @@
+//! The detector: an `ort` session over the shipped network plus its model card.
+
+use std::path::{Path, PathBuf};
+
+use image::RgbImage;
+use ndarray::{Array2, Array4};
+use ort::session::Session;
+use ort::value::TensorRef;
+
+use super::nms::{Candidate, non_max_suppression};
+use super::runtime::environment;
+use super::{DetectError, Detection, Letterbox, ModelCard};
+
+/// The part detector (see the module docs).
+#[derive(Debug)]
+pub struct Detector {
+    session: Session,
+    card: ModelCard,
+}
+
+impl Detector {
+    /// Loads `onnx_path` and the model card beside it (same stem, `.json`).
+    pub fn load(onnx_path: &Path) -> Result<Self, DetectError> {
+        let card = ModelCard::load(&onnx_path.with_extension("json"))?;
+        let context = || format!("loading {}", onnx_path.display());
+        let session = Session::builder(environment()?)
+            .map_err(|e| DetectError::runtime(context(), &e))?
+            .commit_from_file(onnx_path)
+            .map_err(|e| DetectError::runtime(context(), &e))?;
+        Ok(Self { session, card })
+    }
+
+    /// The network shipped with the crate: `assets/models/detector.onnx`.
+    pub fn load_default() -> Result<Self, DetectError> {
+        Self::load(&Self::default_path())
+    }
+
+    /// Where the shipped network lies.
+    pub fn default_path() -> PathBuf {
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/models/detector.onnx")
+    }
+
+    /// Class names in class-id order.
+    pub fn class_names(&self) -> &[String] {
+        &self.card.classes
+    }
+
+    /// The model card.
+    pub fn card(&self) -> &ModelCard {
+        &self.card
+    }
+
+    /// The network input for `image` and the letterbox that made it.
+    pub fn preprocess(&self, image: &RgbImage) -> Result<(Array4<f32>, Letterbox), DetectError> {
+        if image.width() == 0 || image.height() == 0 {
+            return Err(DetectError::Image("empty image".into()));
+        }
+        let c = &self.card;
+        Ok(Letterbox::apply(
+            image,
+            c.input_width,
+            c.input_height,
+            c.pad_value,
+        ))
+    }
+
+    /// Runs the network on an input tensor: rows `x0, y0, x1, y1, objectness, class
+    /// probabilities...` in input pixels, one per head cell.
+    pub fn run_raw(&mut self, input: &Array4<f32>) -> Result<Array2<f32>, DetectError> {
+        let tensor = TensorRef::from_array_view(input)
+            .map_err(|e| DetectError::runtime("making the input tensor", &e))?;
+        let outputs = self
+            .session
+            .run(ort::inputs![tensor])
+            .map_err(|e| DetectError::runtime("running the detector", &e))?;
+        let (shape, data) = outputs[0]
+            .try_extract_tensor::<f32>()
+            .map_err(|e| DetectError::runtime("reading the detector's output", &e))?;
+        let columns = 5 + self.card.classes.len();
+        let dims: Vec<i64> = shape.iter().copied().collect();
+        let [1, rows, cols] = dims[..] else {
+            return Err(DetectError::Output(format!(
+                "shape {dims:?}, expected [1, cells, {columns}]"
+            )));
+        };
+        if usize::try_from(cols).ok() != Some(columns) {
+            return Err(DetectError::Output(format!(
+                "{cols} columns, the card's {} classes need {columns}",
+                self.card.classes.len()
+            )));
+        }
+        let rows = usize::try_from(rows).map_err(|e| DetectError::Output(e.to_string()))?;
+        Array2::from_shape_vec((rows, columns), data.to_vec())
+            .map_err(|e| DetectError::Output(e.to_string()))
+    }
+
+    /// The objects in `image`: scored, thresholded at the card's operating point, suppressed
+    /// across classes, boxes in image pixels, best first.
+    pub fn detect(&mut self, image: &RgbImage) -> Result<Vec<Detection>, DetectError> {
+        let (input, letterbox) = self.preprocess(image)?;
+        let raw = self.run_raw(&input)?;
+        let threshold = self.card.score_threshold;
+        let candidates =
+            raw.rows()
+                .into_iter()
+                .filter_map(|row| {
+                    let (class_id, p) = row.iter().skip(5).enumerate().fold(
+                        (0, f32::NEG_INFINITY),
+                        |best, (i, &p)| {
+                            if p > best.1 { (i, p) } else { best }
+                        },
+                    );
+                    let score = row[4] * p;
+                    (score >= threshold).then(|| Candidate {
+                        class_id,
+                        score,
+                        box_px: [row[0], row[1], row[2], row[3]],
+                    })
+                })
+                .collect();
+        let kept = non_max_suppression(candidates, self.card.nms_iou_threshold);
+        Ok(kept
+            .into_iter()
+            .map(|c| Detection {
+                class_id: c.class_id,
+                class_name: self.card.classes[c.class_id].clone(),
+                score: c.score,
+                box_px: letterbox.to_image(c.box_px, image.width(), image.height()),
+            })
+            .collect())
+    }
+}

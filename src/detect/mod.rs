@@ -1,0 +1,24 @@
+//! The part detector: a small YOLO-style network (CSP backbone, SPPF, PAN neck, three anchor-free
+//! heads) trained on the twin's own renders by `training/`, shipped as ONNX in `assets/models/`
+//! with a model card, and run here through the `ort` API on its pure-Rust tract backend.
+//!
+//! [`Detector::detect`] letterboxes an image to the network's input, runs it, keeps the cells
+//! whose score (objectness times best class probability) reaches the card's threshold, runs
+//! class-agnostic non-maximum suppression and maps the boxes back to image pixels. The graph
+//! itself decodes boxes and applies the sigmoids, so its output rows are
+//! `x0, y0, x1, y1, objectness, class probabilities...` in input pixels.
+
+mod detection;
+mod detector;
+mod error;
+mod letterbox;
+mod model_card;
+mod nms;
+mod runtime;
+
+pub use detection::Detection;
+pub use detector::Detector;
+pub use error::DetectError;
+pub use letterbox::Letterbox;
+pub use model_card::ModelCard;
+pub use nms::{Candidate, non_max_suppression};

@@ -1,0 +1,26 @@
+#!/usr/bin/env bash
+# The documented retrain: renders the data, trains from scratch, exports and scores on the
+# held-out sets. Deterministic (fixed seeds, one torch thread): it reproduces the shipped
+# assets/models/detector.onnx.
+#
+# Usage: training/retrain.sh [MODEL_DIR]   (default assets/models; give another directory to
+#        retrain beside the shipped model and compare)
+# Environment: DATA (default ~/.cache/twincell/detdata), TWINCELL (the release binary; default
+# $CARGO_TARGET_DIR/release/twincell or target/release/twincell), TWINCELL_VENV.
+set -euo pipefail
+here="$(cd "$(dirname "$0")" && pwd)"
+root="$(dirname "$here")"
+models="${1:-$root/assets/models}"
+data="${DATA:-$HOME/.cache/twincell/detdata}"
+venv="${TWINCELL_VENV:-$HOME/.cache/twincell/venv}"
+"$here/setup.sh"
+"$here/make_data.sh" "$data" all
+mkdir -p "$models"
+py="$venv/bin/python"
+export OMP_NUM_THREADS=1 OMP_WAIT_POLICY=passive
+cd "$here"
+nice -n 10 "$py" train.py --data "$data/train_731" "$data/train_7311_harsh" \
+    --out "$models/detector.pt" --epochs 12 --batch 16 --lr 3e-3 --crop 256 320 --seed 6 \
+    --threads 1 --eval-every 4
+"$py" export.py --weights "$models/detector.pt" --out "$models/detector.onnx"
+"$py" evaluate.py --model "$models/detector.onnx" --data "$data/heldout_9001" "$data/heldout_9002_harsh"

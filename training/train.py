@@ -1,0 +1,260 @@
+"""Trains the part detector from scratch on `twincell dataset` output.
+
+Seeded and single-process with a fixed thread count, so the same command on the same data gives
+the same weights. Recipe after the paper's: Adam, cosine learning-rate decay, Gaussian-noise and
+random-colour augmentation; plus flips and random crops at the native scale (never resized: the
+parts' apparent size is what tells neighbouring types apart). Records the command, the data's
+digest and per-epoch metrics to NAME.train.json next to the weights NAME.pt.
+"""
+
+import argparse
+import math
+import os
+import sys
+import time
+
+import numpy as np
+import torch
+import torch.nn.functional as F
+
+import common
+from model import Detector, STRIDES, decode_boxes, flatten
+
+# Box sizes (longest side, px) each level learns; overlapping so no object falls between.
+LEVEL_RANGES = {8: (0, 112), 16: (64, 224), 32: (160, 1e9)}
+CENTRE_RADIUS = 2.5  # positives: cells within this many strides of the box centre, inside the box
+
+
+def parse_args(argv):
+    p = argparse.ArgumentParser(description=__doc__)
+    p.add_argument("--data", nargs="+", required=True, help="dataset directories (data.yaml)")
+    p.add_argument("--out", required=True, help="output .pt path; the record goes to .train.json beside")
+    p.add_argument("--epochs", type=int, default=30)
+    p.add_argument("--batch", type=int, default=16)
+    p.add_argument("--lr", type=float, default=3e-3)
+    p.add_argument("--crop", type=int, nargs=2, default=[256, 320], metavar=("H", "W"))
+    p.add_argument("--seed", type=int, default=6)
+    p.add_argument("--threads", type=int, default=1)
+    p.add_argument("--limit", type=int, default=0, help="use only the first N training images")
+    p.add_argument("--eval-every", type=int, default=5, help="epochs between val mAP checks")
+    return p.parse_args(argv)
+
+
+def augment(batch, rng):
+    """Random colour (per-channel gain, brightness, contrast) and Gaussian noise; float 0..1."""
+    n = batch.shape[0]
+    gain = torch.from_numpy(rng.uniform(0.8, 1.2, (n, 3, 1, 1)).astype(np.float32))
+    bright = torch.from_numpy(rng.uniform(-0.1, 0.1, (n, 1, 1, 1)).astype(np.float32))
+    contrast = torch.from_numpy(rng.uniform(0.7, 1.3, (n, 1, 1, 1)).astype(np.float32))
+    mean = batch.mean((1, 2, 3), keepdim=True)
+    x = (batch * gain - mean) * contrast + mean + bright
+    sigma = torch.from_numpy(rng.uniform(0.0, 10.0 / 255.0, (n, 1, 1, 1)).astype(np.float32))
+    noise = torch.from_numpy(rng.standard_normal(x.shape).astype(np.float32))
+    return (x + sigma * noise).clamp(0.0, 1.0)
+
+
+def crop_sample(image, boxes, ch, cw, rng):
+    """A ch x cw window holding the first (part) box whole when it fits; boxes clipped to it.
+    Boxes cut to under 60% of their area come back with class -1 (ignored by the loss)."""
+    h, w = image.shape[:2]
+    if len(boxes):
+        b = boxes[int(rng.integers(len(boxes)))]
+        x_lo, x_hi = max(0, int(b[3]) + 1 - cw), min(w - cw, int(b[1]))
+        y_lo, y_hi = max(0, int(b[4]) + 1 - ch), min(h - ch, int(b[2]))
+    else:
+        x_lo, x_hi, y_lo, y_hi = 0, w - cw, 0, h - ch
+    x = int(rng.integers(x_lo, x_hi + 1)) if x_hi >= x_lo else int(rng.integers(0, w - cw + 1))
+    y = int(rng.integers(y_lo, y_hi + 1)) if y_hi >= y_lo else int(rng.integers(0, h - ch + 1))
+    out = boxes.copy()
+    if len(out):
+        area = (out[:, 3] - out[:, 1]) * (out[:, 4] - out[:, 2])
+        out[:, [1, 3]] = np.clip(out[:, [1, 3]] - x, 0, cw)
+        out[:, [2, 4]] = np.clip(out[:, [2, 4]] - y, 0, ch)
+        kept = (out[:, 3] - out[:, 1]) * (out[:, 4] - out[:, 2])
+        out = out[kept > 1.0]
+        frac = kept[kept > 1.0] / np.maximum(area[kept > 1.0], 1e-6)
+        out[frac < 0.6, 0] = -1
+    return image[y : y + ch, x : x + cw], out
+
+
+def flip(image, boxes, horizontal):
+    h, w = image.shape[:2]
+    out = boxes.copy()
+    if horizontal:
+        image = image[:, ::-1]
+        out[:, [1, 3]] = w - boxes[:, [3, 1]]
+    else:
+        image = image[::-1]
+        out[:, [2, 4]] = h - boxes[:, [4, 2]]
+    return image, out
+
+
+def assign(targets, centres, strides, num_classes):
+    """Per cell: positive mask, class target, box target, ignore mask. targets: list of [k, 5]."""
+    n, cells = len(targets), len(centres)
+    pos = torch.zeros(n, cells, dtype=torch.bool)
+    ignore = torch.zeros(n, cells, dtype=torch.bool)
+    cls_t = torch.zeros(n, cells, num_classes)
+    box_t = torch.zeros(n, cells, 4)
+    best_area = torch.full((n, cells), float("inf"))
+    cx, cy = centres[:, 0], centres[:, 1]
+    for i, t in enumerate(targets):
+        for c, x0, y0, x1, y1 in t.tolist():
+            inside = (cx > x0) & (cx < x1) & (cy > y0) & (cy < y1)
+            if c < 0:
+                ignore[i] |= inside
+                continue
+            side = max(x1 - x0, y1 - y0)
+            bx, by = (x0 + x1) / 2, (y0 + y1) / 2
+            level_ok = torch.zeros(cells, dtype=torch.bool)
+            for s, (lo, hi) in LEVEL_RANGES.items():
+                if lo <= side <= hi:
+                    level_ok |= strides == s
+            near = ((cx - bx).abs() < CENTRE_RADIUS * strides) & (
+                (cy - by).abs() < CENTRE_RADIUS * strides
+            )
+            area = (x1 - x0) * (y1 - y0)
+            m = inside & near & level_ok & (area < best_area[i])
+            best_area[i][m] = area
+            pos[i] |= m
+            cls_t[i][m] = 0.0
+            cls_t[i][m, int(c)] = 1.0
+            box_t[i][m] = torch.tensor([x0, y0, x1, y1])
+    return pos, cls_t, box_t, ignore & ~pos
+
+
+def giou(a, b):
+    lt = torch.max(a[:, :2], b[:, :2])
+    rb = torch.min(a[:, 2:], b[:, 2:])
+    inter = (rb - lt).clamp(min=0).prod(1)
+    area_a = (a[:, 2:] - a[:, :2]).clamp(min=0).prod(1)
+    area_b = (b[:, 2:] - b[:, :2]).clamp(min=0).prod(1)
+    union = area_a + area_b - inter + 1e-7
+    iou = inter / union
+    hull = (torch.max(a[:, 2:], b[:, 2:]) - torch.min(a[:, :2], b[:, :2])).prod(1) + 1e-7
+    return iou - (hull - union) / hull
+
+
+def loss_fn(maps, targets, num_classes):
+    raw, centres, strides = flatten(maps)
+    pos, cls_t, box_t, ignore = assign(targets, centres, strides, num_classes)
+    n_pos = max(int(pos.sum()), 1)
+    boxes = decode_boxes(raw, centres, strides)
+    obj_w = (~ignore).float()
+    obj = F.binary_cross_entropy_with_logits(raw[..., 4], pos.float(), weight=obj_w, reduction="sum")
+    if pos.any():
+        g = giou(boxes[pos], box_t[pos])
+        box = (1.0 - g).sum()
+        cls = F.binary_cross_entropy_with_logits(raw[..., 5:][pos], cls_t[pos], reduction="sum")
+    else:
+        box = cls = raw.sum() * 0.0
+    return (5.0 * box + obj + cls) / n_pos, {
+        "box": float(box.detach()) / n_pos,
+        "obj": float(obj.detach()) / n_pos,
+        "cls": float(cls.detach()) / n_pos,
+    }
+
+
+def main(argv):
+    args = parse_args(argv)
+    common.seed_everything(args.seed, args.threads)
+    rng = np.random.default_rng(args.seed)
+    names = common.read_names(args.data[0])
+    for d in args.data[1:]:
+        if common.read_names(d) != names:
+            raise ValueError(f"{d}/data.yaml: class names differ from {args.data[0]}")
+    train_images, train_targets, val_images, val_targets, files = [], [], [], [], []
+    for d in args.data:
+        imgs, tgts, stems = common.read_split(d, "train")
+        train_images.append(imgs)
+        train_targets += tgts
+        files += [os.path.join(d, "images", "train", s + ".png") for s in stems]
+        imgs, tgts, _ = common.read_split(d, "val")
+        val_images.append(imgs)
+        val_targets += tgts
+    train_images = np.concatenate(train_images)
+    val_images = np.concatenate(val_images)
+    if args.limit:
+        train_images, train_targets = train_images[: args.limit], train_targets[: args.limit]
+        files = files[: args.limit]
+    print(f"train {len(train_images)} images, val {len(val_images)}, classes {names}", flush=True)
+
+    net = Detector(len(names))
+    opt = torch.optim.Adam(net.parameters(), lr=args.lr, weight_decay=0.0)
+    steps_per_epoch = len(train_images) // args.batch
+    total = steps_per_epoch * args.epochs
+    warmup = min(steps_per_epoch, total // 10)
+
+    def lr_at(step):
+        if step < warmup:
+            return args.lr * (step + 1) / warmup
+        t = (step - warmup) / max(total - warmup, 1)
+        return args.lr * (0.02 + 0.98 * 0.5 * (1 + math.cos(math.pi * t)))
+
+    ch, cw = args.crop
+    history = []
+    start = time.time()
+    step = 0
+    for epoch in range(args.epochs):
+        net.train()
+        order = rng.permutation(len(train_images))
+        sums = {"loss": 0.0, "box": 0.0, "obj": 0.0, "cls": 0.0}
+        for b in range(steps_per_epoch):
+            crops, targets = [], []
+            for k in order[b * args.batch : (b + 1) * args.batch]:
+                image, boxes = crop_sample(train_images[k], train_targets[k], ch, cw, rng)
+                if rng.random() < 0.5:
+                    image, boxes = flip(image, boxes, True)
+                if rng.random() < 0.5:
+                    image, boxes = flip(image, boxes, False)
+                crops.append(np.ascontiguousarray(image))
+                targets.append(boxes)
+            x = augment(common.to_tensor(np.stack(crops)), rng)
+            for g in opt.param_groups:
+                g["lr"] = lr_at(step)
+            loss, parts = loss_fn(net(x), targets, len(names))
+            opt.zero_grad()
+            loss.backward()
+            torch.nn.utils.clip_grad_norm_(net.parameters(), 10.0)
+            opt.step()
+            step += 1
+            sums["loss"] += float(loss.detach())
+            for key, v in parts.items():
+                sums[key] += v
+        row = {k: v / steps_per_epoch for k, v in sums.items()}
+        row["epoch"] = epoch + 1
+        row["seconds"] = round(time.time() - start, 1)
+        if (epoch + 1) % args.eval_every == 0 or epoch + 1 == args.epochs:
+            dets = [
+                common.postprocess(r, 0.01, 0.5) for r in common.predict(net, val_images)
+            ]
+            row["val_map50"] = common.evaluate(dets, val_targets, names, 0.5)["map50"]
+        history.append(row)
+        print(" ".join(f"{k}={v:.4f}" if isinstance(v, float) else f"{k}={v}" for k, v in row.items()), flush=True)
+
+    torch.save({"state_dict": net.state_dict(), "names": names}, args.out)
+    dets = [common.postprocess(r, 0.01, 0.5) for r in common.predict(net, val_images)]
+    val = common.evaluate(dets, val_targets, names, 0.5)
+    common.write_json(
+        os.path.splitext(args.out)[0] + ".train.json",
+        {
+            "command": [os.path.basename(sys.executable), "training/train.py", *argv],
+            "data": {
+                "dirs": args.data,
+                "train_images": len(train_images),
+                "val_images": len(val_images),
+                "train_digest_sha256": common.digest(files),
+            },
+            "torch": torch.__version__,
+            "seed": args.seed,
+            "threads": args.threads,
+            "seconds": round(time.time() - start, 1),
+            "history": history,
+            "val": val,
+        },
+    )
+    print(f"val mAP@0.5 {val['map50']:.4f}; wrote {args.out}", flush=True)
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
