@@ -31,7 +31,7 @@ pub enum DetectError {
 
 impl DetectError {
     /// Wraps an `ort` error with what was being done.
-    pub(crate) fn runtime(context: impl Into<String>, err: &ort::Error) -> Self {
+    pub(crate) fn runtime<R>(context: impl Into<String>, err: &ort::Error<R>) -> Self {
         Self::Runtime {
             context: context.into(),
             reason: err.to_string(),
