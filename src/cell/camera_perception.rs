@@ -17,8 +17,8 @@ use super::bottle_fit::{BottleFitter, BottlePose};
 use crate::detect::{Detection, Detector};
 use crate::perception::calibration::{CameraCalibration, PlaneBore};
 use crate::perception::roundness::DEFAULT_MAX_UPR;
-use crate::perception::{Bore, BoreDetector};
-use crate::render::{CameraRig, Renderer, RendererOptions, Scene, Shot};
+use crate::perception::{Bore, BoreDetector, BoreDetectorParams};
+use crate::render::{CameraRig, Renderer, RendererOptions, Scene, SensorWindow, Shot};
 use crate::rng::SimRng;
 use crate::scenario::Scenario;
 
@@ -103,6 +103,7 @@ pub struct Sighting {
 /// The camera pipeline shared by the worker threads of a batch.
 pub struct CameraPerception {
     rig: CameraRig,
+    roi_scale: u32,
     options: RendererOptions,
     model_path: PathBuf,
     renderers: Mutex<Vec<Renderer>>,
@@ -167,11 +168,14 @@ impl CameraPerception {
         let bottle_fitter = BottleFitter::new(rig.calibration, &scenario.bottle);
         Ok(Self {
             rig,
+            roi_scale: scenario.camera.roi_scale,
             options,
             model_path,
             renderers: Mutex::new(vec![renderer]),
             detectors: Mutex::new(vec![detector]),
-            bore_detector: BoreDetector::default(),
+            bore_detector: BoreDetector::new(
+                BoreDetectorParams::default().at_scale(f64::from(scenario.camera.roi_scale)),
+            ),
             type_of_class,
             bottle_class: class_index("bottle"),
             bottle_fitter,
@@ -181,6 +185,17 @@ impl CameraPerception {
     /// The calibrated camera.
     pub fn rig(&self) -> &CameraRig {
         &self.rig
+    }
+
+    /// Runs `draw` on a pooled renderer.
+    fn render<T>(
+        &self,
+        draw: impl FnOnce(&mut Renderer) -> Result<T, crate::render::RenderError>,
+    ) -> Result<T, CameraPerceptionError> {
+        let mut renderer = take(&self.renderers, || Renderer::new(self.options))?;
+        let result = draw(&mut renderer);
+        give_back(&self.renderers, renderer);
+        Ok(result?)
     }
 
     /// Renders `scene` with the frame's realism drawn from `rng`, detects, and measures. The part
@@ -196,11 +211,8 @@ impl CameraPerception {
     ) -> Result<Sighting, CameraPerceptionError> {
         let started = Instant::now();
         let shot = Shot::of_scene(scenario, &self.rig, &scenario.sensor, scene, rng);
-        let mut renderer = take(&self.renderers, || Renderer::new(self.options))?;
-        let image = shot.render(&mut renderer);
-        give_back(&self.renderers, renderer);
-        let image = image?;
-        let render_ms = started.elapsed().as_secs_f64() * 1e3;
+        let image = self.render(|renderer| shot.render(renderer))?;
+        let mut render_ms = started.elapsed().as_secs_f64() * 1e3;
 
         let started = Instant::now();
         let mut detector = take(&self.detectors, || Detector::load(&self.model_path))?;
@@ -210,7 +222,7 @@ impl CameraPerception {
         let detect_ms = started.elapsed().as_secs_f64() * 1e3;
 
         let started = Instant::now();
-        let gray = image::imageops::grayscale(&image);
+        let mut window_render_ms = 0.0;
         let station_px = self.rig.calibration.project(station_in_world);
         let mut target: Option<(f64, usize)> = None;
         let mut parts = Vec::new();
@@ -249,16 +261,30 @@ impl CameraPerception {
             let is_target = target.is_some_and(|(_, t)| t == k);
             let face_m = belt_top_z_m + scenario.part_types[type_index].height_mm / 1000.0;
             let calibration = self.rig.calibration.with_end_face_height(face_m);
-            // Only the target's bore is measured; other parts are obstacles.
-            let bore = if is_target {
-                measure_in_box(
-                    &self.bore_detector,
-                    &gray,
-                    &detections[index].box_px.map(f64::from),
-                    &calibration,
-                )
-            } else {
-                None
+            // Only the target's bore is measured, in its area of interest; other parts are
+            // obstacles.
+            let box_px = detections[index].box_px.map(f64::from);
+            let window = part_window(
+                &box_px,
+                (self.rig.width_px, self.rig.height_px),
+                self.roi_scale,
+            )
+            .filter(|_| is_target);
+            let bore = match window {
+                Some(window) => {
+                    let rendered = Instant::now();
+                    let window_image =
+                        self.render(|renderer| shot.render_window(renderer, &window))?;
+                    window_render_ms += rendered.elapsed().as_secs_f64() * 1e3;
+                    measure_in_window(
+                        &self.bore_detector,
+                        &image::imageops::grayscale(&window_image),
+                        &window,
+                        &box_px,
+                        &calibration,
+                    )
+                }
+                None => None,
             };
             let centre_in_world = match &bore {
                 Some((_, plane)) => plane.centre_in_world,
@@ -291,7 +317,8 @@ impl CameraPerception {
                 other_parts.push(sighting);
             }
         }
-        let metrology_ms = started.elapsed().as_secs_f64() * 1e3;
+        let metrology_ms = started.elapsed().as_secs_f64() * 1e3 - window_render_ms;
+        render_ms += window_render_ms;
         Ok(Sighting {
             image,
             detections,
@@ -305,35 +332,47 @@ impl CameraPerception {
     }
 }
 
-/// Finds the bore inside a part's box (widened by `BOX_MARGIN`, 15 % a side) and measures it on the
-/// end-face plane; the bore nearest the box centre wins. `None` when there is none.
-pub fn measure_in_box(
+/// The area of interest of a part's box in a `frame_px` large frame: the box widened by
+/// `BOX_MARGIN` (15 %) a side, on a sensor with `roi_scale` pixels per frame pixel.
+pub fn part_window(
+    box_px: &[f64; 4],
+    frame_px: (u32, u32),
+    roi_scale: u32,
+) -> Option<SensorWindow> {
+    let [x0, y0, x1, y1] = *box_px;
+    let (mx, my) = ((x1 - x0) * BOX_MARGIN, (y1 - y0) * BOX_MARGIN);
+    SensorWindow::covering([x0 - mx, y0 - my, x1 + mx, y1 + my], frame_px, roi_scale)
+}
+
+/// Finds the bore in a part's area of interest (`gray`, read through `window`) and measures it
+/// on the end-face plane of `calibration` (the frame's camera); the bore nearest the centre of
+/// the part's box (frame pixels) wins. The bore comes back in frame pixels. `None` when there
+/// is none.
+pub fn measure_in_window(
     bore_detector: &BoreDetector,
     gray: &GrayImage,
+    window: &SensorWindow,
     box_px: &[f64; 4],
     calibration: &CameraCalibration,
 ) -> Option<(Bore, PlaneBore)> {
     let [x0, y0, x1, y1] = *box_px;
-    let (mx, my) = ((x1 - x0) * BOX_MARGIN, (y1 - y0) * BOX_MARGIN);
-    let clamp = |v: f64, size: u32| v.clamp(0.0, f64::from(size)) as u32;
-    let (left, top) = (clamp(x0 - mx, gray.width()), clamp(y0 - my, gray.height()));
-    let right = clamp((x1 + mx).ceil() + 1.0, gray.width());
-    let bottom = clamp((y1 + my).ceil() + 1.0, gray.height());
-    if right <= left || bottom <= top {
-        return None;
-    }
-    let crop = image::imageops::crop_imm(gray, left, top, right - left, bottom - top).to_image();
-    let bores = bore_detector.detect(&crop).ok()?;
     let centre = [(x0 + x1) / 2.0, (y0 + y1) / 2.0];
-    let (dx, dy) = (f64::from(left), f64::from(top));
-    let bore = bores
+    let in_box = |p: [f64; 2]| (x0..=x1).contains(&p[0]) && (y0..=y1).contains(&p[1]);
+    let distance = |b: &Bore| {
+        let [x, y] = window.to_frame(b.centre_px);
+        (x - centre[0]).hypot(y - centre[1])
+    };
+    let bore = bore_detector
+        .detect(gray)
+        .ok()?
         .into_iter()
-        .map(|bore| bore.translated(dx, dy))
-        .filter(|b| (x0..=x1).contains(&b.centre_px[0]) && (y0..=y1).contains(&b.centre_px[1]))
-        .min_by(|a, b| {
-            let d = |b: &Bore| (b.centre_px[0] - centre[0]).hypot(b.centre_px[1] - centre[1]);
-            d(a).total_cmp(&d(b))
-        })?;
-    let plane = calibration.measure_on_plane(&bore, DEFAULT_MAX_UPR).ok()?;
-    Some((bore, plane))
+        .filter(|b| in_box(window.to_frame(b.centre_px)))
+        .min_by(|a, b| distance(a).total_cmp(&distance(b)))?;
+    let plane = window
+        .calibration(calibration)
+        .measure_on_plane(&bore, DEFAULT_MAX_UPR)
+        .ok()?;
+    let s = 1.0 / f64::from(window.scale);
+    let [dx, dy] = window.to_frame([0.0, 0.0]);
+    Some((bore.mapped(s, dx, dy), plane))
 }

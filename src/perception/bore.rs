@@ -127,6 +127,35 @@ impl Default for BoreDetectorParams {
     }
 }
 
+impl BoreDetectorParams {
+    /// The parameters for images with `factor` times the pixels per millimetre these are tuned
+    /// for (an area of interest read at a finer pitch): the spatial windows and size limits
+    /// scale; the edge profile's, set by the optics' blur in pixels, do not.
+    pub fn at_scale(mut self, factor: f64) -> Self {
+        let scale_px = |v: u32| ((f64::from(v) * factor).round() as u32).max(1);
+        self.threshold = match self.threshold {
+            ThresholdMethod::AdaptiveMean {
+                block_radius_px,
+                delta,
+            } => ThresholdMethod::AdaptiveMean {
+                block_radius_px: scale_px(block_radius_px),
+                delta,
+            },
+            ThresholdMethod::AdaptiveGaussian { sigma_px, delta } => {
+                ThresholdMethod::AdaptiveGaussian {
+                    sigma_px: sigma_px * factor as f32,
+                    delta,
+                }
+            }
+            global => global,
+        };
+        self.min_radius_px *= factor;
+        self.max_radius_px *= factor;
+        self.min_ring_width_px *= factor;
+        self
+    }
+}
+
 /// A measured bore, pixels (x right, y down, pixel centres at integers).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Bore {
@@ -157,17 +186,24 @@ pub struct Bore {
 }
 
 impl Bore {
-    /// The same bore seen in an image whose origin lies `(dx_px, dy_px)` before this one's (a bore
-    /// found in a crop, moved into the full image): every pixel coordinate shifts.
-    pub fn translated(mut self, dx_px: f64, dy_px: f64) -> Self {
-        self.centre_px = [self.centre_px[0] + dx_px, self.centre_px[1] + dy_px];
+    /// The same bore in another image's pixels, `p' = scale p + (dx_px, dy_px)` (a bore found in
+    /// an area of interest read at a finer pitch, moved into the frame): positions map, lengths
+    /// and their uncertainties scale.
+    pub fn mapped(mut self, scale: f64, dx_px: f64, dy_px: f64) -> Self {
+        let map = |p: [f64; 2]| [scale * p[0] + dx_px, scale * p[1] + dy_px];
+        self.centre_px = map(self.centre_px);
         for p in self
             .edge_points_px
             .iter_mut()
             .chain(self.bridge_points_px.iter_mut())
         {
-            *p = [p[0] + dx_px, p[1] + dy_px];
+            *p = map(*p);
         }
+        self.radius_px *= scale;
+        self.roundness_px *= scale;
+        self.centre_sigma_px *= scale;
+        self.radius_sigma_px *= scale;
+        self.roundness_sigma_px *= scale;
         self
     }
 }

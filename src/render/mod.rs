@@ -10,6 +10,7 @@
 //!   renderer and perception share one camera model.
 //! - [`sensor`]: seeded sensor effects after the render (gradient, vignetting, noise,
 //!   salt-and-pepper); [`shot`]: a staged pick-station shot with drawn realism and ground truth;
+//!   [`window`]: an area of interest of a shot read out at the sensor's full pitch;
 //!   [`dataset`]: an Ultralytics/YOLO dataset of such shots.
 
 mod cull;
@@ -21,8 +22,10 @@ pub mod renderer;
 pub mod scene;
 pub mod sensor;
 pub mod shot;
+pub mod window;
 
 pub use error::RenderError;
 pub use renderer::{Exposure, GpuScene, Light, Renderer, RendererOptions, StainBlob};
 pub use scene::{ObjectKind, Scene, SceneObject};
 pub use shot::{BoreTruth, CameraRig, ObjectTruth, Shot, ShotError};
+pub use window::SensorWindow;

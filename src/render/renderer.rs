@@ -28,6 +28,8 @@ const OBJECT_STRIDE: u64 = 256;
 const COLOUR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
 const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 const ID_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Uint;
+/// Render-target sizes a renderer keeps before it drops them all and starts again.
+const MAX_TARGET_SIZES: usize = 12;
 
 /// A directional light.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -580,6 +582,10 @@ impl Renderer {
     ) -> Result<(), RenderError> {
         if self.targets.contains_key(&(w, h, ids)) {
             return Ok(());
+        }
+        // Areas of interest come in many sizes: keep a bounded set of targets.
+        if self.targets.len() >= MAX_TARGET_SIZES {
+            self.targets.clear();
         }
         let limit = self.device.limits().max_texture_dimension_2d;
         if w > limit || h > limit {

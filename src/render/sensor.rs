@@ -48,12 +48,23 @@ impl SensorDraw {
 
     /// Applies the effects to a rendered image in place.
     pub fn apply(&self, image: &mut RgbImage) {
+        let size = image.dimensions();
+        self.apply_window(image, (0, 0), size);
+    }
+
+    /// Applies the effects to a window of a larger sensor read out on its own: `image` holds
+    /// the sensor's pixels from `origin_px` on, of a sensor `sensor_px` large, so the light
+    /// gradient and vignetting fall on it as they fall on that part of the whole sensor.
+    pub fn apply_window(&self, image: &mut RgbImage, origin_px: (u32, u32), sensor_px: (u32, u32)) {
         if self.is_identity() {
             return;
         }
-        let (w, h) = (f64::from(image.width()), f64::from(image.height()));
-        let (cx, cy) = ((w - 1.0) / 2.0, (h - 1.0) / 2.0);
-        let half_diagonal = cx.hypot(cy).max(1.0);
+        let (w, h) = (f64::from(sensor_px.0), f64::from(sensor_px.1));
+        let (cx, cy) = (
+            (w - 1.0) / 2.0 - f64::from(origin_px.0),
+            (h - 1.0) / 2.0 - f64::from(origin_px.1),
+        );
+        let half_diagonal = ((w - 1.0) / 2.0).hypot((h - 1.0) / 2.0).max(1.0);
         let (gs, gc) = self.gradient_angle_rad.sin_cos();
         let mut rng = SimRng::new(self.noise_seed);
         let normal = Ziggurat::get();

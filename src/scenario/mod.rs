@@ -353,6 +353,10 @@ pub struct CameraSection {
     pub msaa_samples: u32,
     /// Supersampling factor per axis on top of MSAA (1 to 4): renders larger and box-filters.
     pub supersample: u32,
+    /// Sensor pixels per frame pixel along each axis (1 to 4). The sensor delivers the whole
+    /// frame at `resolution_px` (binned) for detection and reads the target part's area of
+    /// interest at its full pitch for the bore metrology.
+    pub roi_scale: u32,
 }
 
 impl Default for CameraSection {
@@ -364,6 +368,7 @@ impl Default for CameraSection {
             look_at_m: None,
             msaa_samples: 4,
             supersample: 1,
+            roi_scale: 2,
         }
     }
 }

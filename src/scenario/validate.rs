@@ -152,6 +152,9 @@ impl Scenario {
         if !(1..=4).contains(&camera.supersample) {
             return Err(c.fail("camera.supersample", "must lie in [1, 4]"));
         }
+        if !(1..=4).contains(&camera.roi_scale) {
+            return Err(c.fail("camera.roi_scale", "must lie in [1, 4]"));
+        }
         if let Some(p) = camera.position_m {
             c.finite("camera.position_m", &p)?;
         }
