@@ -107,7 +107,8 @@ pub struct RobotSection {
     pub home_q_rad: [f64; 6],
     /// Fraction of the joint speed and acceleration limits used for free motion.
     pub speed_fraction: f64,
-    /// Fraction used while carrying a part (gentler, so the grip holds).
+    /// Fraction used while carrying a part (gentler, so the grip holds; the lift off the belt
+    /// goes at half of it).
     pub carry_speed_fraction: f64,
     /// Optional URDF path (relative to the scenario file); the built-in arm when absent.
     pub urdf: Option<PathBuf>,
@@ -128,7 +129,7 @@ impl Default for RobotSection {
                 0.416_979,
             ],
             speed_fraction: 0.6,
-            carry_speed_fraction: 0.2,
+            carry_speed_fraction: 0.4,
             urdf: None,
         }
     }
