@@ -39,11 +39,11 @@ impl Letterbox {
         let mut tensor = Array4::from_elem((1, 3, height as usize, width as usize), fill);
         let k = w / nw;
         if k >= 2 && k * nw == w && k * nh == h {
-            let mut means = vec![0; nw as usize * 3];
+            let levels = mean_levels(k);
             let mut sums = vec![0; nw as usize * 3];
             for y in 0..nh {
-                block_means(image, k, y, &mut sums, &mut means);
-                write_row(&mut tensor, oy + y, ox, &means);
+                block_sums(image, k, y, &mut sums);
+                write_row(&mut tensor, oy + y, ox, &sums, |sum| levels[sum as usize]);
             }
         } else {
             let resized;
@@ -53,8 +53,11 @@ impl Letterbox {
                 resized = image::imageops::resize(image, nw, nh, FilterType::Triangle);
                 &resized
             };
+            let levels = mean_levels(1);
             for (y, row) in (0..).zip(source.as_raw().chunks_exact(nw as usize * 3)) {
-                write_row(&mut tensor, oy + y, ox, row);
+                write_row(&mut tensor, oy + y, ox, row, |byte| {
+                    levels[usize::from(byte)]
+                });
             }
         }
         let letterbox = Self {
@@ -77,37 +80,48 @@ impl Letterbox {
     }
 }
 
-/// Writes interleaved RGB bytes into row `y` of each colour plane of `tensor` from column `x`.
-fn write_row(tensor: &mut Array4<f32>, y: u32, x: u32, rgb: &[u8]) {
+/// Writes interleaved RGB samples, mapped to input values by `value`, into row `y` of each colour
+/// plane of `tensor` from column `x`.
+fn write_row<T: Copy>(
+    tensor: &mut Array4<f32>,
+    y: u32,
+    x: u32,
+    rgb: &[T],
+    value: impl Fn(T) -> f32,
+) {
     let (y, x) = (y as usize, x as usize);
     let n = rgb.len() / 3;
     for c in 0..3 {
         let mut row = tensor.slice_mut(s![0, c, y, x..x + n]);
-        for (value, px) in row.iter_mut().zip(rgb.chunks_exact(3)) {
-            *value = f32::from(px[c]) / 255.0;
+        for (out, px) in row.iter_mut().zip(rgb.chunks_exact(3)) {
+            *out = value(px[c]);
         }
     }
 }
 
-/// Output row `y` of `image` shrunk `k` times: each pixel the mean of a `k` x `k` block per
-/// channel, rounded half up, written to `means` (interleaved RGB; `sums` is scratch of the same
-/// length).
-fn block_means(image: &RgbImage, k: u32, y: u32, sums: &mut [u32], means: &mut [u8]) {
+/// The input value for every sum of a `k` x `k` block of bytes: the block's mean, rounded half
+/// up, over 255 (a table, so no pixel pays for a division).
+fn mean_levels(k: u32) -> Vec<f32> {
+    let area = k * k;
+    (0..=255 * area)
+        .map(|sum| ((sum + area / 2) / area) as f32 / 255.0)
+        .collect()
+}
+
+/// The per-channel sums of the `k` x `k` blocks making output row `y` of `image` shrunk `k`
+/// times, into `sums` (interleaved RGB, one triple per output pixel).
+fn block_sums(image: &RgbImage, k: u32, y: u32, sums: &mut [u32]) {
     let k = k as usize;
     let stride = image.width() as usize * 3;
     sums.fill(0);
     for source_row in image.as_raw()[y as usize * k * stride..][..k * stride].chunks_exact(stride) {
-        for (x, px) in source_row.chunks_exact(3).enumerate() {
-            let sum = &mut sums[x / k * 3..][..3];
-            sum[0] += u32::from(px[0]);
-            sum[1] += u32::from(px[1]);
-            sum[2] += u32::from(px[2]);
+        for (sum, block) in sums.chunks_exact_mut(3).zip(source_row.chunks_exact(3 * k)) {
+            for px in block.chunks_exact(3) {
+                sum[0] += u32::from(px[0]);
+                sum[1] += u32::from(px[1]);
+                sum[2] += u32::from(px[2]);
+            }
         }
-    }
-    let area = (k * k) as u32;
-    for (mean, &sum) in means.iter_mut().zip(sums.iter()) {
-        // At most 255: the sum of k * k bytes, rounded, over k * k.
-        *mean = ((sum + area / 2) / area) as u8;
     }
 }
 
