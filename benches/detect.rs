@@ -1,6 +1,7 @@
 //! The detector's cost per frame (`cargo bench --bench detect`): one rendered 640x480
-//! pick-station image through the shipped network on ort's tract backend (letterbox, network,
-//! decoding and NMS), and the network alone.
+//! pick-station image through the shipped network on ort's tract backend (letterbox to the
+//! card's input, network, decoding and NMS), the letterbox alone, and the network alone (named
+//! after its input size).
 
 use std::hint::black_box;
 use std::path::Path;
@@ -46,11 +47,19 @@ fn detect_benches(c: &mut Criterion) {
             Err(e) => panic!("{e}"),
         })
     });
+    group.bench_function("letterbox_640x480", |b| {
+        b.iter(|| match detector.preprocess(black_box(&image)) {
+            Ok(input) => black_box(input),
+            Err(e) => panic!("{e}"),
+        })
+    });
     let input = match detector.preprocess(&image) {
         Ok((input, _)) => input,
         Err(e) => panic!("{e}"),
     };
-    group.bench_function("network_640x480", |b| {
+    let card = detector.card();
+    let network = format!("network_{}x{}", card.input_width, card.input_height);
+    group.bench_function(network, |b| {
         b.iter(|| match detector.run_raw(black_box(&input)) {
             Ok(raw) => black_box(raw),
             Err(e) => panic!("{e}"),

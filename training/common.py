@@ -3,7 +3,9 @@
 import hashlib
 import json
 import os
+import math
 import random
+from typing import NamedTuple
 
 import numpy as np
 import torch
@@ -30,15 +32,78 @@ def read_names(data_dir):
     return [names[i] for i in range(len(names))]
 
 
-def read_split(data_dir, split):
-    """(uint8 images [N, H, W, 3], boxes per image as float arrays [k, 5] of class, x0, y0, x1, y1
-    in pixels, file stems) for one split of a dataset directory."""
+PAD_VALUE = 114  # grey of the letterbox padding
+
+
+class Letterbox(NamedTuple):
+    """How an image was put into the network input (as src/detect/letterbox.rs does it):
+    input = image x scale + offset."""
+
+    scale: float
+    offset_x: int
+    offset_y: int
+    image_width: int
+    image_height: int
+
+    def to_input(self, boxes):
+        """x0, y0, x1, y1 boxes [k, 4] from image pixels to input pixels."""
+        offset = np.array([self.offset_x, self.offset_y] * 2, dtype=np.float32)
+        return (boxes * self.scale + offset).astype(np.float32)
+
+    def to_image(self, boxes):
+        """x0, y0, x1, y1 boxes [k, 4] from input pixels to image pixels, clipped to the image."""
+        offset = np.array([self.offset_x, self.offset_y] * 2, dtype=np.float32)
+        limit = np.array([self.image_width, self.image_height] * 2, dtype=np.float32)
+        return np.clip((boxes - offset) / self.scale, 0.0, limit)
+
+
+def fitted_size(w, h, width, height):
+    """The size a w x h image takes inside a width x height input, aspect kept: the Rust
+    letterbox's f32 arithmetic (round half away from zero)."""
+    if (w, h) == (width, height):
+        return w, h
+    scale = min(np.float32(width) / np.float32(w), np.float32(height) / np.float32(h))
+
+    def fit(side, limit):
+        return min(max(math.floor(float(np.float32(side) * scale) + 0.5), 1), limit)
+
+    return fit(w, width), fit(h, height)
+
+
+def letterbox(image, width, height, pad, label):
+    """An image [h, w, 3] uint8 as the network's uint8 input [height, width, 3], and the
+    `Letterbox` used. The image shrinks by a whole factor k (k x k block means, each channel
+    rounded half up: (sum + k*k/2) div k*k), then is centred on a `pad`-grey canvas. The Rust
+    side does exactly this; for sizes that are no whole multiple of the fitted size it falls back
+    to bilinear scaling, which training never uses, so such images are refused here."""
+    h, w = image.shape[:2]
+    nw, nh = fitted_size(w, h, width, height)
+    k = w // nw
+    if k * nw != w or k * nh != h:
+        raise ValueError(
+            f"{label}: a {w}x{h} image fits {width}x{height} as {nw}x{nh}, not a whole "
+            "factor smaller; only whole-factor block averaging is implemented here"
+        )
+    if k > 1:
+        sums = image.reshape(nh, k, nw, k, 3).sum((1, 3), dtype=np.uint32)
+        image = ((sums + k * k // 2) // (k * k)).astype(np.uint8)
+    ox, oy = (width - nw) // 2, (height - nh) // 2
+    canvas = np.full((height, width, 3), pad, dtype=np.uint8)
+    canvas[oy : oy + nh, ox : ox + nw] = image
+    return canvas, Letterbox(nw / w, ox, oy, w, h)
+
+
+def read_split(data_dir, split, width, height, pad=PAD_VALUE):
+    """One split of a dataset directory, letterboxed to the network's width x height:
+    (uint8 inputs [N, height, width, 3], boxes per image as float arrays [k, 5] of class, x0, y0,
+    x1, y1 in image pixels, the `Letterbox` per image, file paths)."""
     image_dir = os.path.join(data_dir, "images", split)
     label_dir = os.path.join(data_dir, "labels", split)
     stems = sorted(f[:-4] for f in os.listdir(image_dir) if f.endswith(".png"))
-    images, targets = [], []
+    inputs, targets, frames, files = [], [], [], []
     for stem in stems:
-        image = np.asarray(Image.open(os.path.join(image_dir, stem + ".png")).convert("RGB"))
+        path = os.path.join(image_dir, stem + ".png")
+        image = np.asarray(Image.open(path).convert("RGB"))
         h, w = image.shape[:2]
         rows = []
         with open(os.path.join(label_dir, stem + ".txt"), encoding="utf-8") as f:
@@ -50,9 +115,12 @@ def read_split(data_dir, split):
                 rows.append(
                     [c, (cx - bw / 2) * w, (cy - bh / 2) * h, (cx + bw / 2) * w, (cy + bh / 2) * h]
                 )
-        images.append(image)
+        canvas, frame = letterbox(image, width, height, pad, path)
+        inputs.append(canvas)
         targets.append(np.array(rows, dtype=np.float32).reshape(-1, 5))
-    return np.stack(images), targets, stems
+        frames.append(frame)
+        files.append(path)
+    return np.stack(inputs), targets, frames, files
 
 
 def digest(paths):
@@ -103,21 +171,23 @@ def nms(boxes, scores, iou_threshold):
     return np.array(keep, dtype=np.int64)
 
 
-def postprocess(rows, score_threshold, iou_threshold):
-    """One image's decoded rows [cells, 5 + C] (numpy) to detections: list of (class, score, box).
-    Score = objectness x best class probability; class-agnostic NMS."""
+def postprocess(rows, score_threshold, iou_threshold, frame):
+    """One image's decoded rows [cells, 5 + C] (numpy, input pixels) to detections: list of
+    (class, score, box in image pixels through `frame`, a `Letterbox`). Score = objectness x best
+    class probability; class-agnostic NMS."""
     cls = rows[:, 5:]
     class_ids = cls.argmax(1)
     scores = rows[:, 4] * cls[np.arange(len(cls)), class_ids]
     mask = scores >= score_threshold
     boxes, scores, class_ids = rows[mask, :4], scores[mask], class_ids[mask]
     keep = nms(boxes, scores, iou_threshold)
+    boxes = frame.to_image(boxes)
     return [(int(class_ids[k]), float(scores[k]), boxes[k]) for k in keep]
 
 
 @torch.no_grad()
 def predict(net, images, batch=8):
-    """Decoded rows [N, cells, 5 + C] for uint8 images [N, H, W, 3]."""
+    """Decoded rows [N, cells, 5 + C] (input pixels) for uint8 inputs [N, H, W, 3]."""
     net.eval()
     out = []
     for i in range(0, len(images), batch):
@@ -143,7 +213,7 @@ def evaluate(detections, targets, names, operating_threshold, iou_match=0.5):
     is a bottle, IoU >= 0.5) at that threshold.
 
     detections: per image, list of (class, score, box) from `postprocess` at a low threshold.
-    targets: per image, array [k, 5] of class, x0, y0, x1, y1."""
+    targets: per image, array [k, 5] of class, x0, y0, x1, y1 (same pixels as the boxes)."""
     bottle = names.index("bottle") if "bottle" in names else -1
     per_class = {}
     bottle_as_part = 0

@@ -1,7 +1,8 @@
 """Scores the exported detector (through ONNX Runtime, as shipped) on held-out sets.
 
 mAP@0.5 over the classes, per-class AP, precision and recall at the card's operating threshold,
-and the count of bottles reported as a part at that threshold. Held-out sets are rendered by
+and the count of bottles reported as a part at that threshold. Images are letterboxed as the Rust side does it
+(common.letterbox) and boxes are compared in image pixels. Held-out sets are rendered by
 make_data.sh with seeds never used in training (both splits of each set are used). Writes the
 metrics into the model card under "heldout" and prints them.
 """
@@ -38,11 +39,15 @@ def main(argv):
             raise ValueError(f"{d}/data.yaml: classes differ from the model card's")
         n = 0
         for split in ("train", "val"):
-            images, tgts, _ = common.read_split(d, split)
-            for image, t in zip(images, tgts):
+            images, tgts, frames, _ = common.read_split(
+                d, split, card["input_width"], card["input_height"], card["pad_value"]
+            )
+            for image, t, frame in zip(images, tgts, frames):
                 x = common.to_tensor(image[None]).numpy()
                 rows = session.run(None, {"images": x})[0][0]
-                detections.append(common.postprocess(rows, 0.01, card["nms_iou_threshold"]))
+                detections.append(
+                    common.postprocess(rows, 0.01, card["nms_iou_threshold"], frame)
+                )
                 targets.append(t)
                 n += 1
         sets.append({"dir": os.path.basename(os.path.normpath(d)), "images": n})

@@ -1,7 +1,7 @@
 """Exports trained weights to the shipped ONNX graph and writes its model card.
 
-The graph takes [1, 3, H, W] RGB in 0..1 (H x W = 480 x 640, the camera's detector resolution)
-and returns [1, cells, 5 + classes]: x0, y0, x1, y1 in input pixels, objectness, class
+The graph takes [1, 3, H, W] RGB in 0..1 (W x H the input size the weights were trained at,
+recorded in the .pt: 320 x 256, a 640 x 480 camera frame halved and letterboxed) and returns [1, cells, 5 + classes]: x0, y0, x1, y1 in input pixels, objectness, class
 probabilities. The card (same stem, .json) holds what inference needs (classes, input size,
 padding, operating threshold, NMS IoU) plus the training record and, once evaluate.py has run,
 the held-out metrics.
@@ -14,12 +14,19 @@ import sys
 
 import torch
 
+from common import PAD_VALUE
 from model import Detector, Exported
 
-INPUT_H, INPUT_W = 480, 640
-PAD_VALUE = 114
 SCORE_THRESHOLD = 0.5
 NMS_IOU = 0.5
+INPUT_LAYOUT = (
+    "NCHW float32 RGB in 0..1 (byte / 255). The image is letterboxed: scaled to fit with its "
+    "aspect kept and centred on pad_value grey. When the image is a whole factor k larger than "
+    "its fitted size (a 640x480 frame into 320x256: k = 2, 320x240 plus 8 grey rows above and "
+    "below; a 1280x960 frame: k = 4), each input pixel is the mean of a k x k block, per channel "
+    "rounded half up as (sum + k*k/2) div (k*k); training uses only this path. Any other size is "
+    "scaled bilinearly (the Rust image crate's Triangle filter)."
+)
 
 
 def main(argv):
@@ -33,8 +40,9 @@ def main(argv):
     net = Detector(len(names))
     net.load_state_dict(ckpt["state_dict"])
     net.eval()
-    graph = Exported(net, INPUT_H, INPUT_W).eval()
-    dummy = torch.zeros(1, 3, INPUT_H, INPUT_W)
+    width, height = ckpt["input"]
+    graph = Exported(net, height, width).eval()
+    dummy = torch.zeros(1, 3, height, width)
     torch.onnx.export(
         graph,
         (dummy,),
@@ -49,9 +57,9 @@ def main(argv):
     card = {
         "name": "twincell part detector",
         "classes": names,
-        "input_width": INPUT_W,
-        "input_height": INPUT_H,
-        "input_layout": "NCHW float32 RGB in 0..1, letterboxed (aspect kept, centred)",
+        "input_width": width,
+        "input_height": height,
+        "input_layout": INPUT_LAYOUT,
         "pad_value": PAD_VALUE,
         "output_layout": "[1, cells, 5 + classes]: x0, y0, x1, y1 (input px), objectness, "
         "class probabilities; score = objectness x best class probability",

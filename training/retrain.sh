@@ -16,11 +16,13 @@ venv="${TWINCELL_VENV:-$HOME/.cache/twincell/venv}"
 "$here/setup.sh"
 "$here/make_data.sh" "$data" all
 mkdir -p "$models"
+# Relative to training/ (where the scripts run), so the card's recorded command names no checkout.
+models="$(realpath --relative-to="$here" "$models")"
 py="$venv/bin/python"
 export OMP_NUM_THREADS=1 OMP_WAIT_POLICY=passive
 cd "$here"
 nice -n 10 "$py" train.py --data "$data/train_731" "$data/train_7311_harsh" \
-    --out "$models/detector.pt" --epochs 12 --batch 16 --lr 3e-3 --crop 256 320 --seed 6 \
+    --out "$models/detector.pt" --epochs 12 --batch 16 --lr 3e-3 --input 320 256 --seed 6 \
     --threads 1 --eval-every 4
 "$py" export.py --weights "$models/detector.pt" --out "$models/detector.onnx"
 "$py" evaluate.py --model "$models/detector.onnx" --data "$data/heldout_9001" "$data/heldout_9002_harsh"

@@ -2,8 +2,10 @@
 
 Seeded and single-process with a fixed thread count, so the same command on the same data gives
 the same weights. Recipe after the paper's: Adam, cosine learning-rate decay, Gaussian-noise and
-random-colour augmentation; plus flips and random crops at the native scale (never resized: the
-parts' apparent size is what tells neighbouring types apart). Records the command, the data's
+random-colour augmentation; plus flips. Every image is letterboxed to the network input exactly
+as the Rust side does it (common.letterbox: a 640x480 render halves to 320x240 by 2x2 block
+means and is centred on a 320x256 grey canvas), so training sees what inference sees; no other
+rescaling, as the parts' apparent size is what tells neighbouring types apart. Records the command, the data's
 digest and per-epoch metrics to NAME.train.json next to the weights NAME.pt.
 """
 
@@ -20,8 +22,9 @@ import torch.nn.functional as F
 import common
 from model import Detector, STRIDES, decode_boxes, flatten
 
-# Box sizes (longest side, px) each level learns; overlapping so no object falls between.
-LEVEL_RANGES = {8: (0, 112), 16: (64, 224), 32: (160, 1e9)}
+# Box sizes (longest side, input px) each level learns; overlapping so no object falls between.
+# At the 320x256 input parts are 26-67 px and bottles up to 88 px.
+LEVEL_RANGES = {8: (0, 56), 16: (32, 112), 32: (80, 1e9)}
 CENTRE_RADIUS = 2.5  # positives: cells within this many strides of the box centre, inside the box
 
 
@@ -32,7 +35,10 @@ def parse_args(argv):
     p.add_argument("--epochs", type=int, default=30)
     p.add_argument("--batch", type=int, default=16)
     p.add_argument("--lr", type=float, default=3e-3)
-    p.add_argument("--crop", type=int, nargs=2, default=[256, 320], metavar=("H", "W"))
+    p.add_argument(
+        "--input", type=int, nargs=2, default=[320, 256], metavar=("W", "H"),
+        help="network input size; each side must divide by 32",
+    )
     p.add_argument("--seed", type=int, default=6)
     p.add_argument("--threads", type=int, default=1)
     p.add_argument("--limit", type=int, default=0, help="use only the first N training images")
@@ -53,30 +59,6 @@ def augment(batch, rng):
     return (x + sigma * noise).clamp(0.0, 1.0)
 
 
-def crop_sample(image, boxes, ch, cw, rng):
-    """A ch x cw window holding the first (part) box whole when it fits; boxes clipped to it.
-    Boxes cut to under 60% of their area come back with class -1 (ignored by the loss)."""
-    h, w = image.shape[:2]
-    if len(boxes):
-        b = boxes[int(rng.integers(len(boxes)))]
-        x_lo, x_hi = max(0, int(b[3]) + 1 - cw), min(w - cw, int(b[1]))
-        y_lo, y_hi = max(0, int(b[4]) + 1 - ch), min(h - ch, int(b[2]))
-    else:
-        x_lo, x_hi, y_lo, y_hi = 0, w - cw, 0, h - ch
-    x = int(rng.integers(x_lo, x_hi + 1)) if x_hi >= x_lo else int(rng.integers(0, w - cw + 1))
-    y = int(rng.integers(y_lo, y_hi + 1)) if y_hi >= y_lo else int(rng.integers(0, h - ch + 1))
-    out = boxes.copy()
-    if len(out):
-        area = (out[:, 3] - out[:, 1]) * (out[:, 4] - out[:, 2])
-        out[:, [1, 3]] = np.clip(out[:, [1, 3]] - x, 0, cw)
-        out[:, [2, 4]] = np.clip(out[:, [2, 4]] - y, 0, ch)
-        kept = (out[:, 3] - out[:, 1]) * (out[:, 4] - out[:, 2])
-        out = out[kept > 1.0]
-        frac = kept[kept > 1.0] / np.maximum(area[kept > 1.0], 1e-6)
-        out[frac < 0.6, 0] = -1
-    return image[y : y + ch, x : x + cw], out
-
-
 def flip(image, boxes, horizontal):
     h, w = image.shape[:2]
     out = boxes.copy()
@@ -90,10 +72,9 @@ def flip(image, boxes, horizontal):
 
 
 def assign(targets, centres, strides, num_classes):
-    """Per cell: positive mask, class target, box target, ignore mask. targets: list of [k, 5]."""
+    """Per cell: positive mask, class target, box target. targets: list of [k, 5]."""
     n, cells = len(targets), len(centres)
     pos = torch.zeros(n, cells, dtype=torch.bool)
-    ignore = torch.zeros(n, cells, dtype=torch.bool)
     cls_t = torch.zeros(n, cells, num_classes)
     box_t = torch.zeros(n, cells, 4)
     best_area = torch.full((n, cells), float("inf"))
@@ -101,9 +82,6 @@ def assign(targets, centres, strides, num_classes):
     for i, t in enumerate(targets):
         for c, x0, y0, x1, y1 in t.tolist():
             inside = (cx > x0) & (cx < x1) & (cy > y0) & (cy < y1)
-            if c < 0:
-                ignore[i] |= inside
-                continue
             side = max(x1 - x0, y1 - y0)
             bx, by = (x0 + x1) / 2, (y0 + y1) / 2
             level_ok = torch.zeros(cells, dtype=torch.bool)
@@ -120,7 +98,7 @@ def assign(targets, centres, strides, num_classes):
             cls_t[i][m] = 0.0
             cls_t[i][m, int(c)] = 1.0
             box_t[i][m] = torch.tensor([x0, y0, x1, y1])
-    return pos, cls_t, box_t, ignore & ~pos
+    return pos, cls_t, box_t
 
 
 def giou(a, b):
@@ -137,11 +115,10 @@ def giou(a, b):
 
 def loss_fn(maps, targets, num_classes):
     raw, centres, strides = flatten(maps)
-    pos, cls_t, box_t, ignore = assign(targets, centres, strides, num_classes)
+    pos, cls_t, box_t = assign(targets, centres, strides, num_classes)
     n_pos = max(int(pos.sum()), 1)
     boxes = decode_boxes(raw, centres, strides)
-    obj_w = (~ignore).float()
-    obj = F.binary_cross_entropy_with_logits(raw[..., 4], pos.float(), weight=obj_w, reduction="sum")
+    obj = F.binary_cross_entropy_with_logits(raw[..., 4], pos.float(), reduction="sum")
     if pos.any():
         g = giou(boxes[pos], box_t[pos])
         box = (1.0 - g).sum()
@@ -155,6 +132,13 @@ def loss_fn(maps, targets, num_classes):
     }
 
 
+def validate(net, images, frames, targets, names):
+    """Metrics on the validation inputs, boxes compared in image pixels."""
+    rows = common.predict(net, images)
+    dets = [common.postprocess(r, 0.01, 0.5, f) for r, f in zip(rows, frames)]
+    return common.evaluate(dets, targets, names, 0.5)
+
+
 def main(argv):
     args = parse_args(argv)
     common.seed_everything(args.seed, args.threads)
@@ -163,15 +147,22 @@ def main(argv):
     for d in args.data[1:]:
         if common.read_names(d) != names:
             raise ValueError(f"{d}/data.yaml: class names differ from {args.data[0]}")
-    train_images, train_targets, val_images, val_targets, files = [], [], [], [], []
+    width, height = args.input
+    if width % STRIDES[-1] or height % STRIDES[-1]:
+        raise ValueError(f"--input {width} {height}: each side must divide by {STRIDES[-1]}")
+    train_images, train_targets, val_images, val_targets, val_frames, files = [], [], [], [], [], []
     for d in args.data:
-        imgs, tgts, stems = common.read_split(d, "train")
+        imgs, tgts, frames, paths = common.read_split(d, "train", width, height)
         train_images.append(imgs)
-        train_targets += tgts
-        files += [os.path.join(d, "images", "train", s + ".png") for s in stems]
-        imgs, tgts, _ = common.read_split(d, "val")
+        # Training targets live in input pixels.
+        train_targets += [
+            np.concatenate((t[:, :1], f.to_input(t[:, 1:])), 1) for t, f in zip(tgts, frames)
+        ]
+        files += paths
+        imgs, tgts, frames, _ = common.read_split(d, "val", width, height)
         val_images.append(imgs)
         val_targets += tgts
+        val_frames += frames
     train_images = np.concatenate(train_images)
     val_images = np.concatenate(val_images)
     if args.limit:
@@ -191,7 +182,6 @@ def main(argv):
         t = (step - warmup) / max(total - warmup, 1)
         return args.lr * (0.02 + 0.98 * 0.5 * (1 + math.cos(math.pi * t)))
 
-    ch, cw = args.crop
     history = []
     start = time.time()
     step = 0
@@ -200,16 +190,16 @@ def main(argv):
         order = rng.permutation(len(train_images))
         sums = {"loss": 0.0, "box": 0.0, "obj": 0.0, "cls": 0.0}
         for b in range(steps_per_epoch):
-            crops, targets = [], []
+            inputs, targets = [], []
             for k in order[b * args.batch : (b + 1) * args.batch]:
-                image, boxes = crop_sample(train_images[k], train_targets[k], ch, cw, rng)
+                image, boxes = train_images[k], train_targets[k]
                 if rng.random() < 0.5:
                     image, boxes = flip(image, boxes, True)
                 if rng.random() < 0.5:
                     image, boxes = flip(image, boxes, False)
-                crops.append(np.ascontiguousarray(image))
+                inputs.append(np.ascontiguousarray(image))
                 targets.append(boxes)
-            x = augment(common.to_tensor(np.stack(crops)), rng)
+            x = augment(common.to_tensor(np.stack(inputs)), rng)
             for g in opt.param_groups:
                 g["lr"] = lr_at(step)
             loss, parts = loss_fn(net(x), targets, len(names))
@@ -225,16 +215,14 @@ def main(argv):
         row["epoch"] = epoch + 1
         row["seconds"] = round(time.time() - start, 1)
         if (epoch + 1) % args.eval_every == 0 or epoch + 1 == args.epochs:
-            dets = [
-                common.postprocess(r, 0.01, 0.5) for r in common.predict(net, val_images)
-            ]
-            row["val_map50"] = common.evaluate(dets, val_targets, names, 0.5)["map50"]
+            row["val_map50"] = validate(net, val_images, val_frames, val_targets, names)["map50"]
         history.append(row)
         print(" ".join(f"{k}={v:.4f}" if isinstance(v, float) else f"{k}={v}" for k, v in row.items()), flush=True)
 
-    torch.save({"state_dict": net.state_dict(), "names": names}, args.out)
-    dets = [common.postprocess(r, 0.01, 0.5) for r in common.predict(net, val_images)]
-    val = common.evaluate(dets, val_targets, names, 0.5)
+    torch.save(
+        {"state_dict": net.state_dict(), "names": names, "input": [width, height]}, args.out
+    )
+    val = validate(net, val_images, val_frames, val_targets, names)
     common.write_json(
         os.path.splitext(args.out)[0] + ".train.json",
         {

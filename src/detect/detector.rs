@@ -5,11 +5,10 @@ use std::path::{Path, PathBuf};
 use image::RgbImage;
 use ndarray::{Array2, Array4};
 use ort::session::Session;
-use ort::session::builder::GraphOptimizationLevel;
 use ort::value::TensorRef;
 
 use super::nms::{Candidate, non_max_suppression};
-use super::runtime::environment;
+use super::runtime::session_builder;
 use super::{DetectError, Detection, Letterbox, ModelCard};
 
 /// The part detector (see the module docs).
@@ -24,12 +23,7 @@ impl Detector {
     pub fn load(onnx_path: &Path) -> Result<Self, DetectError> {
         let card = ModelCard::load(&onnx_path.with_extension("json"))?;
         let context = || format!("loading {}", onnx_path.display());
-        let session = Session::builder(environment()?)
-            .map_err(|e| DetectError::runtime(context(), &e))?
-            // tract runs the graph as parsed unless asked to optimise it (fold batch
-            // normalisation, fuse activations, pick packed kernels): about 3x faster.
-            .with_optimization_level(GraphOptimizationLevel::Level3)
-            .map_err(|e| DetectError::runtime(context(), &e))?
+        let session = session_builder(context)?
             .commit_from_file(onnx_path)
             .map_err(|e| DetectError::runtime(context(), &e))?;
         Ok(Self { session, card })

@@ -1,6 +1,8 @@
 //! The part detector: a small YOLO-style network (CSP backbone, SPPF, PAN neck, three anchor-free
 //! heads) trained on the twin's own renders by `training/`, shipped as ONNX in `assets/models/`
-//! with a model card, and run here through the `ort` API on its pure-Rust tract backend.
+//! with a model card, and run here through the `ort` API on its pure-Rust tract backend (or, with
+//! the feature `onnxruntime` instead of the default `tract`, on a native ONNX Runtime loaded from
+//! `ORT_DYLIB_PATH`).
 //!
 //! [`Detector::detect`] letterboxes an image to the network's input, runs it, keeps the cells
 //! whose score (objectness times best class probability) reaches the card's threshold, runs
