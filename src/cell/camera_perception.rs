@@ -1,8 +1,9 @@
 //! The cell's camera perception (`--perception camera`, the product): the pick station rendered
-//! as the calibrated camera sees it, the detector's boxes, the paper's metrology inside the part's
-//! box, and what those mean in the world through the calibration.
+//! as the calibrated camera sees it, the detector's boxes, the paper's metrology in the target
+//! part's area of interest (its box read again at the sensor's full pitch, `[camera]
+//! roi_scale` times the frame's), and what those mean in the world through the calibration.
 //!
-//! Everything here works from the image and the calibration alone; the world is only rendered,
+//! Everything here works from the images and the calibration alone; the world is only rendered,
 //! never read. Renderers and detectors are expensive to make, so each worker thread takes one from
 //! a pool and puts it back: results do not depend on which instance served a trial.
 
