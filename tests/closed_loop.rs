@@ -125,6 +125,7 @@ fn bores_measured_in_their_areas_of_interest_locate_size_and_grade_the_part() {
             Ok(s) => s,
             Err(e) => panic!("shot {index}: {e}"),
         };
+        let gpu = renderer.upload(&shot.scene);
         for truth in shot.truth(&scenario) {
             let Some(bore) = truth.bore else {
                 continue;
@@ -134,7 +135,7 @@ fn bores_measured_in_their_areas_of_interest_locate_size_and_grade_the_part() {
             else {
                 panic!("shot {index}: no area of interest");
             };
-            let image = match shot.render_window(&mut renderer, &window) {
+            let image = match shot.render_window(&mut renderer, &gpu, &window) {
                 Ok(i) => image::imageops::grayscale(&i),
                 Err(e) => panic!("shot {index}: {e}"),
             };

@@ -156,36 +156,28 @@ fn bad_record_paths_are_bad_input() {
     let scenario = root().join("scenarios/smoke.toml");
     let scenario = scenario.to_str().expect("utf-8");
     let out_arg = out.to_str().expect("utf-8");
-    let (code, _, stderr) = twincell(&[
-        "run",
-        scenario,
-        "--trials",
-        "1",
-        "--perception",
-        "oracle",
-        "--out",
-        out_arg,
-        "--record",
-        "smoke.txt",
-    ]);
+    let run_recording_to = |record: &str| {
+        twincell(&[
+            "run",
+            scenario,
+            "--trials",
+            "1",
+            "--perception",
+            "oracle",
+            "--out",
+            out_arg,
+            "--record",
+            record,
+        ])
+    };
+    let (code, _, stderr) = run_recording_to("smoke.txt");
     assert_eq!(code, 2, "{stderr}");
     assert!(
         stderr.contains("--record") && stderr.contains(".rrd"),
         "{stderr}"
     );
     let missing = out.join("no/such/dir/smoke.rrd");
-    let (code, _, stderr) = twincell(&[
-        "run",
-        scenario,
-        "--trials",
-        "1",
-        "--perception",
-        "oracle",
-        "--out",
-        out_arg,
-        "--record",
-        missing.to_str().expect("utf-8"),
-    ]);
+    let (code, _, stderr) = run_recording_to(missing.to_str().expect("utf-8"));
     assert_eq!(code, 2, "{stderr}");
     assert!(stderr.contains("no/such/dir/smoke.rrd"), "{stderr}");
 }

@@ -188,17 +188,6 @@ impl CameraPerception {
         &self.rig
     }
 
-    /// Runs `draw` on a pooled renderer.
-    fn render<T>(
-        &self,
-        draw: impl FnOnce(&mut Renderer) -> Result<T, crate::render::RenderError>,
-    ) -> Result<T, CameraPerceptionError> {
-        let mut renderer = take(&self.renderers, || Renderer::new(self.options))?;
-        let result = draw(&mut renderer);
-        give_back(&self.renderers, renderer);
-        Ok(result?)
-    }
-
     /// Renders `scene` with the frame's realism drawn from `rng`, detects, and measures. The part
     /// whose box centre lies nearest `station_in_world`'s pixel is the target; parts and bottles
     /// stand on the belt's top surface at `belt_top_z_m`.
@@ -210,9 +199,34 @@ impl CameraPerception {
         station_in_world: &Point3<f64>,
         belt_top_z_m: f64,
     ) -> Result<Sighting, CameraPerceptionError> {
+        let mut renderer = take(&self.renderers, || Renderer::new(self.options))?;
+        let sighting = self.look_with(
+            &mut renderer,
+            scenario,
+            scene,
+            rng,
+            station_in_world,
+            belt_top_z_m,
+        );
+        give_back(&self.renderers, renderer);
+        sighting
+    }
+
+    /// [`Self::look`] on one renderer: the frame and the target's area of interest render from
+    /// one upload of the scene.
+    fn look_with(
+        &self,
+        renderer: &mut Renderer,
+        scenario: &Scenario,
+        scene: Scene,
+        rng: &mut SimRng,
+        station_in_world: &Point3<f64>,
+        belt_top_z_m: f64,
+    ) -> Result<Sighting, CameraPerceptionError> {
         let started = Instant::now();
         let shot = Shot::of_scene(scenario, &self.rig, &scenario.sensor, scene, rng);
-        let image = self.render(|renderer| shot.render(renderer))?;
+        let gpu = renderer.upload(&shot.scene);
+        let image = shot.render_uploaded(renderer, &gpu)?;
         let mut render_ms = started.elapsed().as_secs_f64() * 1e3;
 
         let started = Instant::now();
@@ -265,17 +279,14 @@ impl CameraPerception {
             // Only the target's bore is measured, in its area of interest; other parts are
             // obstacles.
             let box_px = detections[index].box_px.map(f64::from);
-            let window = part_window(
-                &box_px,
-                (self.rig.width_px, self.rig.height_px),
-                self.roi_scale,
-            )
-            .filter(|_| is_target);
+            let frame_px = (self.rig.width_px, self.rig.height_px);
+            let window = is_target
+                .then(|| part_window(&box_px, frame_px, self.roi_scale))
+                .flatten();
             let bore = match window {
                 Some(window) => {
                     let rendered = Instant::now();
-                    let window_image =
-                        self.render(|renderer| shot.render_window(renderer, &window))?;
+                    let window_image = shot.render_window(renderer, &gpu, &window)?;
                     window_render_ms += rendered.elapsed().as_secs_f64() * 1e3;
                     measure_in_window(
                         &self.bore_detector,

@@ -9,7 +9,7 @@ use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use serde::Serialize;
 
 use super::error::RenderError;
-use super::renderer::{Exposure, Light, MAX_STAIN_BLOBS, Renderer, StainBlob};
+use super::renderer::{Exposure, GpuScene, Light, MAX_STAIN_BLOBS, Renderer, StainBlob};
 use super::scene::{ObjectKind, Scene, SceneObject};
 use super::sensor::SensorDraw;
 use crate::cell::{Cell, CellError};
@@ -211,7 +211,17 @@ impl Shot {
     /// Renders the shot: the image as the sensor delivers it.
     pub fn render(&self, renderer: &mut Renderer) -> Result<image::RgbImage, RenderError> {
         let gpu = renderer.upload(&self.scene);
-        let mut image = renderer.render(&gpu, &self.exposure)?;
+        self.render_uploaded(renderer, &gpu)
+    }
+
+    /// Renders the shot from its scene as already uploaded to `renderer` ([`Renderer::upload`]),
+    /// so that a frame and its areas of interest share one upload.
+    pub fn render_uploaded(
+        &self,
+        renderer: &mut Renderer,
+        gpu: &GpuScene,
+    ) -> Result<image::RgbImage, RenderError> {
+        let mut image = renderer.render(gpu, &self.exposure)?;
         self.sensor.apply(&mut image);
         Ok(image)
     }

@@ -4,7 +4,7 @@
 
 use image::RgbImage;
 
-use super::{RenderError, Renderer, Shot};
+use super::{GpuScene, RenderError, Renderer, Shot};
 use crate::perception::calibration::CameraCalibration;
 
 /// Window sides are rounded up to a multiple of this many sensor pixels, so that a renderer
@@ -84,18 +84,19 @@ impl SensorWindow {
 }
 
 impl Shot {
-    /// Renders `window` of the shot's sensor: the same scene, camera pose, light and stains as
-    /// the frame, with the sensor's effects where that window lies on it.
+    /// Renders `window` of the shot's sensor from the shot's scene as uploaded to `renderer`
+    /// ([`Renderer::upload`]): the same scene, camera pose, light and stains as the frame, with
+    /// the sensor's effects where that window lies on it.
     pub fn render_window(
         &self,
         renderer: &mut Renderer,
+        gpu: &GpuScene,
         window: &SensorWindow,
     ) -> Result<RgbImage, RenderError> {
         let mut exposure = self.exposure.clone();
         exposure.camera = window.calibration(&self.exposure.camera);
         (exposure.width_px, exposure.height_px) = window.size_px;
-        let gpu = renderer.upload(&self.scene);
-        let mut image = renderer.render(&gpu, &exposure)?;
+        let mut image = renderer.render(gpu, &exposure)?;
         self.sensor
             .apply_window(&mut image, window.origin_px, window.sensor_px);
         Ok(image)
