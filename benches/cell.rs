@@ -8,7 +8,8 @@ use std::time::Duration;
 use criterion::{Criterion, criterion_group, criterion_main};
 use rapier3d::prelude::*;
 use twincell::batch::{Perception, TrialRunner, trial_seed};
-use twincell::cell::{Cell, CellTrialRunner};
+use twincell::cell::Cell;
+use twincell::task::CellTrialRunner;
 use twincell::rng::SimRng;
 use twincell::scenario::Scenario;
 

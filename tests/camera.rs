@@ -9,6 +9,7 @@ use std::path::{Path, PathBuf};
 use image::RgbImage;
 use nalgebra::Vector3;
 use twincell::perception::BoreDetector;
+use twincell::perception::calibration::MeasureOnPlane;
 use twincell::render::dataset::{self, image_stem, is_val};
 use twincell::render::{CameraRig, ObjectKind, Renderer, RendererOptions, Scene, Shot};
 use twincell::scenario::{Scenario, SensorSection};

@@ -71,7 +71,7 @@ fn belt_carries_the_part_to_the_photo_eye_by_friction() {
     let scenario = paper();
     let mut rng = SimRng::new(3);
     let mut cell = Cell::build(&scenario, None, &mut rng).expect("cell builds");
-    let start = cell.body_pose(cell.part_body).expect("part").translation.x;
+    let start = cell.body_pose(cell.items.parts()[0].body).expect("part").translation.x;
     cell.conveyor
         .set_speed_m_s(scenario.conveyor.speed_m_s as f32);
     let mut steps = 0;
@@ -80,7 +80,7 @@ fn belt_carries_the_part_to_the_photo_eye_by_friction() {
         steps += 1;
     }
     assert!(cell.photo_eye_blocked(), "nothing reached the photo-eye");
-    let travelled = cell.body_pose(cell.part_body).expect("part").translation.x - start;
+    let travelled = cell.body_pose(cell.items.parts()[0].body).expect("part").translation.x - start;
     // Something broke the beam; the part has moved downstream at about belt speed.
     let elapsed = steps as f64 * scenario.physics.dt_s;
     assert!(
@@ -95,11 +95,11 @@ fn belt_carries_the_part_to_the_photo_eye_by_friction() {
         cell.world.step_with_hooks(&cell.conveyor);
     }
     assert_eq!(cell.conveyor.speed_m_s(), 0.0);
-    let at_rest = cell.body_pose(cell.part_body).expect("part").translation.x;
+    let at_rest = cell.body_pose(cell.items.parts()[0].body).expect("part").translation.x;
     for _ in 0..480 {
         cell.world.step_with_hooks(&cell.conveyor);
     }
-    let later = cell.body_pose(cell.part_body).expect("part").translation.x;
+    let later = cell.body_pose(cell.items.parts()[0].body).expect("part").translation.x;
     assert!(
         (later - at_rest).abs() < 0.0005,
         "part crept {} m on a stopped belt",
@@ -122,11 +122,11 @@ fn every_part_type_stands_still_and_upright_on_the_stopped_belt() {
         for _ in 0..steps(0.5) {
             cell.world.step_with_hooks(&cell.conveyor);
         }
-        let landed = cell.body_pose(cell.part_body).expect("part");
+        let landed = cell.body_pose(cell.items.parts()[0].body).expect("part");
         let (mut worst_tilt_deg, mut worst_shift_mm) = (0.0f64, 0.0f64);
         for _ in 0..steps(2.0) {
             cell.world.step_with_hooks(&cell.conveyor);
-            let pose = cell.body_pose(cell.part_body).expect("part");
+            let pose = cell.body_pose(cell.items.parts()[0].body).expect("part");
             let up = pose.rotation * nalgebra::Vector3::z();
             worst_tilt_deg = worst_tilt_deg.max(up.z.clamp(-1.0, 1.0).acos().to_degrees());
             let shift = pose.translation.vector - landed.translation.vector;
@@ -222,7 +222,7 @@ fn bad_scenario_exits_with_code_2() {
 #[test]
 fn grasp_holds_by_friction_and_a_weak_grip_lets_the_part_slip() {
     use twincell::batch::{FailureReason, Outcome, Perception, TrialRunner, trial_seed};
-    use twincell::cell::CellTrialRunner;
+    use twincell::task::CellTrialRunner;
     let path = scenario_path("paper_50.toml");
     let scenario = Scenario::load(&path).expect("loads");
     let seed = trial_seed(scenario.seed, 1);
@@ -260,7 +260,7 @@ fn short_stream(dir: &Path, parts: u32, bottles: u32) -> PathBuf {
 #[test]
 fn a_stream_sorts_every_part_and_the_belt_stops_for_each_item() {
     use twincell::batch::{Outcome, Perception, TrialRunner, trial_seed};
-    use twincell::cell::CellTrialRunner;
+    use twincell::task::CellTrialRunner;
     let dir = std::env::temp_dir().join(format!("twincell-stream-{}", std::process::id()));
     let path = short_stream(&dir, 3, 2);
     let scenario = Scenario::load(&path).expect("loads");

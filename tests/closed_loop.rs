@@ -7,8 +7,8 @@ mod common;
 use std::path::Path;
 
 use nalgebra::{Point3, Vector3};
-use twincell::cell::bottle_fit::BottleFitter;
-use twincell::cell::camera_perception::{measure_in_window, part_window};
+use twincell::task::bottle_fit::BottleFitter;
+use twincell::task::camera_percept::{measure_in_window, part_window};
 use twincell::perception::{BoreDetector, BoreDetectorParams};
 use twincell::render::{CameraRig, Renderer, RendererOptions, Shot};
 use twincell::scenario::Scenario;

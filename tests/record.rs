@@ -13,9 +13,11 @@ use std::process::Command;
 
 use common::twincell;
 use twincell::batch::{FailureReason, TrialRecord};
-use twincell::cell::TrialObserverFactory;
-use twincell::cell::{BoreView, Cell, CellView, DetectionView, PerceptionFrame};
+use twincell::task::TrialObserverFactory;
+use twincell::cell::Cell;
+use twincell::task::{BoreView, CellView, DetectionView, PerceptionFrame};
 use twincell::perception::BoreDetector;
+use twincell::perception::calibration::MeasureOnPlane;
 use twincell::record::RerunRecorder;
 use twincell::render::{CameraRig, Renderer, RendererOptions, Shot};
 use twincell::rng::SimRng;
@@ -250,10 +252,8 @@ fn perception_panel_is_recorded() {
     let mut observer = recorder.observer(3);
     let mut rng = SimRng::new(11);
     let cell = Cell::build(&scenario, None, &mut rng).expect("cell");
-    let parts = vec![(cell.part_body, cell.part.clone())];
     let view = CellView {
         cell: &cell,
-        parts: &parts,
         phase: "perceive",
         joint_command_rad: scenario.robot.home_q_rad,
         grip_force_limit_n: scenario.gripper.grip_force_n,

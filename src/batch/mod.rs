@@ -1,5 +1,5 @@
-//! Batches of sorting trials: the per-trial record, running trials in parallel and
-//! deterministically, streaming them to disk, and the reports built from them.
+//! Batches of sorting trials: running trials in parallel and deterministically, streaming their
+//! records (`crate::outcome`) to disk, and the reports built from them.
 
 mod batch_plan;
 mod batch_runner;
@@ -9,7 +9,9 @@ mod junit;
 mod merge;
 mod progress_bar;
 mod report;
-mod trial_record;
+#[cfg(test)]
+mod report_tests;
+mod summary_table;
 
 pub use batch_plan::{BatchPlan, Shard, ShardError, trial_seed};
 pub use batch_runner::{
@@ -20,18 +22,11 @@ pub use interrupt::cancel_on_signals;
 pub use junit::{junit_xml, testcase_name, xml_escape};
 pub use merge::{MergeError, MergeSummary, merge_shards};
 pub use report::{
-    AcceptConfusion, BatchReport, CycleTime, ErrorStats, Gate, Metrology, ReportMeta, Sorting,
+    AcceptConfusion, BandCounts, BatchReport, CycleTime, ErrorStats, Gate, Metrology, ReportMeta, Sorting,
     StageTiming, StageTimings, StreamSummary, Timing, VerdictCounts, Z95, exit_code, passes_gate,
     wilson_interval,
 };
-pub use trial_record::{
+pub use crate::outcome::{
     CLEAR_CUT_BAND_MM, DecisionRecord, FailureReason, Outcome, PartRecord, Perception,
-    StreamPartRecord, StreamRecord, TrialRecord, TrialTiming,
+    StreamPartRecord, StreamRecord, TrialRecord, TrialRunner, TrialTiming,
 };
-
-/// Runs one trial of a scenario. Implementations must be deterministic in `(index, seed)`.
-pub trait TrialRunner: Sync {
-    /// Runs trial `index` with its own `seed` and returns what happened. A failure is a record
-    /// with a reason, not an error; a panic inside is caught by the batch and recorded.
-    fn run_trial(&self, index: u32, seed: u64) -> TrialRecord;
-}

@@ -1,7 +1,6 @@
 //! `report.json`: the statistics of a batch, built from its trial records alone.
 
 use std::collections::BTreeMap;
-use std::fmt::Write as _;
 
 use serde::{Deserialize, Serialize};
 
@@ -114,6 +113,23 @@ pub struct Sorting {
     pub clear_cut: u32,
     /// Of those, the ones judged wrong (accepted out of tolerance or rejected within it).
     pub clear_cut_misjudged: u32,
+    /// Parts whose true roundness lies inside the band (the scenario's
+    /// `roundness_uncertainty_mm` about the tolerance), where either verdict counts as right.
+    #[serde(default)]
+    pub in_band: BandCounts,
+}
+
+/// Parts inside the uncertainty band around the tolerance, and how the sorter decided them.
+#[derive(Debug, Clone, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct BandCounts {
+    /// Parts inside the band.
+    pub parts: u32,
+    /// Of those, the ones the truth accepts (within the tolerance).
+    pub truly_acceptable: u32,
+    /// Decided accept.
+    pub accepted: u32,
+    /// Decided reject.
+    pub rejected: u32,
 }
 
 /// Simulated cycle-time statistics over the successful trials, s.
@@ -217,6 +233,13 @@ pub struct BatchReport {
     pub success_rate: f64,
     /// Wilson score 95 % interval of the success rate, `[low, high]`.
     pub wilson95: [f64; 2],
+    /// Successful trials whose every part also reached the very bin its true roundness calls
+    /// for: success judged against the truth with no uncertainty band.
+    #[serde(default)]
+    pub strict_successes: u32,
+    /// `strict_successes / trials`.
+    #[serde(default)]
+    pub strict_success_rate: f64,
     /// Failure reason -> count.
     pub failures: BTreeMap<String, u32>,
     /// Trials in which the bottle was picked.
@@ -272,7 +295,22 @@ fn error_stats(mut errors: Vec<f64>) -> Option<ErrorStats> {
     })
 }
 
-fn count(n: usize) -> u32 {
+/// Whether `record` succeeded with every part in the bin its truth calls for.
+fn strictly_right(record: &TrialRecord) -> bool {
+    if record.outcome != Outcome::Success {
+        return false;
+    }
+    match (&record.stream, &record.part) {
+        (Some(stream), _) => stream
+            .parts
+            .iter()
+            .all(|p| p.placed_bin.as_deref() == Some(p.part.correct_bin.as_str())),
+        (None, Some(part)) => record.placed_bin.as_deref() == Some(part.correct_bin.as_str()),
+        (None, None) => false,
+    }
+}
+
+pub(crate) fn count(n: usize) -> u32 {
     u32::try_from(n).unwrap_or(u32::MAX)
 }
 
@@ -320,6 +358,12 @@ impl BatchReport {
         } else {
             f64::from(successes) / f64::from(trials)
         };
+        let strict_successes = count(records.iter().filter(|r| strictly_right(r)).count());
+        let strict_success_rate = if trials == 0 {
+            0.0
+        } else {
+            f64::from(strict_successes) / f64::from(trials)
+        };
         let mut failures = BTreeMap::new();
         for record in records.iter().filter(|r| r.outcome == Outcome::Failure) {
             let reason = record.failure.map_or("unspecified", |f| f.as_str());
@@ -362,6 +406,12 @@ impl BatchReport {
                 if decision.accept != part.truly_acceptable {
                     sorting.clear_cut_misjudged += 1;
                 }
+            } else {
+                let band = &mut sorting.in_band;
+                band.parts += 1;
+                band.truly_acceptable += u32::from(part.truly_acceptable);
+                band.accepted += u32::from(decision.accept);
+                band.rejected += u32::from(!decision.accept);
             }
             *sorting
                 .part_type
@@ -439,6 +489,8 @@ impl BatchReport {
             successes,
             success_rate,
             wilson95: wilson_interval(successes, trials, Z95),
+            strict_successes,
+            strict_success_rate,
             failures,
             distractor_picks: count(records.iter().filter(|r| r.distractor_picked).count()),
             distractor_touches: count(records.iter().filter(|r| r.distractor_touched).count()),
@@ -472,266 +524,5 @@ impl BatchReport {
                 jobs: None,
             },
         }
-    }
-
-    /// A fixed-width plain-text summary for the end of a run.
-    pub fn summary_table(&self) -> String {
-        let mut out = String::new();
-        // Writing to a String cannot fail; the results are ignored on purpose.
-        let _ = writeln!(
-            out,
-            "scenario {:?}  seed {}  perception {}",
-            self.scenario,
-            self.seed,
-            self.perception.as_str()
-        );
-        if self.perception == Perception::Oracle {
-            let _ = writeln!(out, "  ** {} **", self.perception_note);
-        }
-        let scope = match self.shard {
-            Some(shard) => format!("shard {shard} of {} trials", self.scenario_trials),
-            None => format!("of {} planned", self.scenario_trials),
-        };
-        let stopped = if self.interrupted {
-            "  INTERRUPTED"
-        } else {
-            ""
-        };
-        let _ = writeln!(
-            out,
-            "{:<22}{:>8}  ({scope}){stopped}",
-            "trials", self.trials
-        );
-        let _ = writeln!(out, "{:<22}{:>8}", "successes", self.successes);
-        let _ = writeln!(
-            out,
-            "{:<22}{:>7.1}%  Wilson 95% [{:.1}%, {:.1}%]",
-            "success rate",
-            100.0 * self.success_rate,
-            100.0 * self.wilson95[0],
-            100.0 * self.wilson95[1]
-        );
-        let _ = writeln!(out, "failures by reason");
-        if self.failures.is_empty() {
-            let _ = writeln!(out, "  {:<20}{:>8}", "(none)", 0);
-        }
-        for (reason, n) in &self.failures {
-            let _ = writeln!(out, "  {reason:<20}{n:>8}");
-        }
-        let _ = writeln!(
-            out,
-            "{:<22}picks {}  touches {}  max displacement {:.2} mm",
-            "distractor",
-            self.distractor_picks,
-            self.distractor_touches,
-            self.distractor_max_displacement_mm
-        );
-        let _ = writeln!(
-            out,
-            "{:<22}{:>8}{:>10}{:>10}{:>10}",
-            "metrology |error| mm", "n", "mean", "p95", "max"
-        );
-        for (name, stats) in [
-            ("roundness", &self.metrology.roundness_error_mm),
-            ("bore diameter", &self.metrology.bore_diameter_error_mm),
-        ] {
-            match stats {
-                Some(s) => {
-                    let _ = writeln!(
-                        out,
-                        "  {name:<20}{:>8}{:>10.4}{:>10.4}{:>10.4}",
-                        s.count, s.mean_mm, s.p95_mm, s.max_mm
-                    );
-                }
-                None => {
-                    let _ = writeln!(out, "  {name:<20}{:>8}{:>10}{:>10}{:>10}", 0, "-", "-", "-");
-                }
-            }
-        }
-        let verdicts = &self.sorting.accept_reject;
-        let _ = writeln!(
-            out,
-            "{:<22}true accept -> {} accepted {} rejected; true reject -> {} accepted {} rejected",
-            "sorting",
-            verdicts.truly_accept.accept,
-            verdicts.truly_accept.reject,
-            verdicts.truly_reject.accept,
-            verdicts.truly_reject.reject
-        );
-        let type_errors: u32 = self
-            .sorting
-            .part_type
-            .iter()
-            .flat_map(|(truth, detected)| {
-                detected
-                    .iter()
-                    .filter(move |(name, _)| *name != truth)
-                    .map(|(_, n)| *n)
-            })
-            .sum();
-        let _ = writeln!(
-            out,
-            "  {:<20}{} of {} clear-cut parts misjudged; {} parts of the wrong detected type",
-            "", self.sorting.clear_cut_misjudged, self.sorting.clear_cut, type_errors
-        );
-        let _ = writeln!(
-            out,
-            "{:<22}{:>8}{:>10}{:>10}{:>10}",
-            "cycle time s", "n", "mean", "p50", "p95"
-        );
-        match &self.cycle_time_s {
-            Some(c) => {
-                let _ = writeln!(
-                    out,
-                    "  {:<20}{:>8}{:>10.3}{:>10.3}{:>10.3}",
-                    "successful", c.count, c.mean, c.p50, c.p95
-                );
-            }
-            None => {
-                let _ = writeln!(
-                    out,
-                    "  {:<20}{:>8}{:>10}{:>10}{:>10}",
-                    "successful", 0, "-", "-", "-"
-                );
-            }
-        }
-        if let Some(stream) = &self.stream {
-            let _ = writeln!(
-                out,
-                "{:<22}{:>8}  of {} reached, {} fed; {} bottles passed, {} belt stops",
-                "stream parts sorted",
-                stream.parts_sorted,
-                stream.parts_reached,
-                stream.parts_planned,
-                stream.bottles_passed,
-                stream.belt_stops
-            );
-            for (reason, n) in &stream.part_failures {
-                let _ = writeln!(out, "  {reason:<20}{n:>8}");
-            }
-        }
-        let ppm = self
-            .parts_per_minute
-            .map_or_else(|| "-".to_owned(), |p| format!("{p:.2}"));
-        let _ = writeln!(out, "{:<22}{:>8}", "parts per minute", ppm);
-        let _ = writeln!(out, "{:<22}{:>8}{:>10}", "wall time", "total s", "mean ms");
-        let stages = &self.timing.stages;
-        for (name, s) in [
-            ("trial", &stages.trial),
-            ("physics", &stages.physics),
-            ("render", &stages.render),
-            ("detect", &stages.detect),
-            ("metrology", &stages.metrology),
-            ("planning", &stages.planning),
-        ] {
-            let _ = writeln!(out, "  {name:<20}{:>8.2}{:>10.2}", s.total_s, s.mean_ms);
-        }
-        if let (Some(wall), Some(jobs)) = (self.timing.batch_wall_s, self.timing.jobs) {
-            let _ = writeln!(out, "{:<22}{wall:>8.2}  on {jobs} jobs", "batch wall s");
-        }
-        if let Some(gate) = &self.gate {
-            let verdict = if gate.passed { "passed" } else { "FAILED" };
-            let _ = writeln!(
-                out,
-                "{:<22}{:>7.1}%  {verdict}",
-                "gate min success",
-                100.0 * gate.min_success
-            );
-        }
-        out
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::batch::{DecisionRecord, FailureReason, PartRecord};
-
-    fn close(a: [f64; 2], b: [f64; 2]) -> bool {
-        (a[0] - b[0]).abs() < 5e-5 && (a[1] - b[1]).abs() < 5e-5
-    }
-
-    #[test]
-    fn wilson_matches_known_values() {
-        let w = wilson_interval(49, 50, Z95);
-        assert!(close(w, [0.8950, 0.9965]), "{w:?}");
-        let w = wilson_interval(0, 10, Z95);
-        assert!(close(w, [0.0, 0.2775]), "{w:?}");
-        let w = wilson_interval(10, 10, Z95);
-        assert!(close(w, [0.7225, 1.0]), "{w:?}");
-        let w = wilson_interval(5, 10, Z95);
-        assert!(close(w, [0.2366, 0.7634]), "{w:?}");
-        assert_eq!(wilson_interval(0, 0, Z95), [0.0, 1.0]);
-    }
-
-    #[test]
-    fn percentile_is_nearest_rank() {
-        let v: Vec<f64> = (1..=20).map(f64::from).collect();
-        assert_eq!(percentile(&v, 0.95), Some(19.0));
-        assert_eq!(percentile(&v, 0.5), Some(10.0));
-        assert_eq!(percentile(&[3.0], 0.95), Some(3.0));
-        assert_eq!(percentile(&[], 0.5), None);
-    }
-
-    fn record(trial: u32, ok: bool) -> TrialRecord {
-        let mut r = if ok {
-            let mut r = TrialRecord::failed(trial, 0, FailureReason::Timeout, "");
-            r.outcome = Outcome::Success;
-            r.failure = None;
-            r.detail = None;
-            r
-        } else {
-            TrialRecord::failed(trial, 0, FailureReason::Slipped, "slid")
-        };
-        r.part = Some(PartRecord {
-            part_type: "a".into(),
-            true_roundness_mm: 0.1,
-            true_bore_diameter_mm: 20.0,
-            truly_acceptable: true,
-            clear_cut: true,
-            correct_bin: "a".into(),
-        });
-        r.decision = Some(DecisionRecord {
-            detected_type: if ok { "a" } else { "b" }.into(),
-            measured_roundness_mm: Some(0.1 + 0.01 * f64::from(trial)),
-            measured_bore_diameter_mm: None,
-            accept: ok,
-            bin: "a".into(),
-            note: None,
-        });
-        r.cycle_time_s = 10.0;
-        r
-    }
-
-    #[test]
-    fn report_counts_from_records() {
-        let meta = ReportMeta {
-            scenario: "s".into(),
-            seed: 1,
-            perception: Perception::Oracle,
-            scenario_trials: 4,
-            shard: None,
-            interrupted: false,
-            min_success: Some(0.8),
-        };
-        let records: Vec<_> = (0..4).map(|i| record(i, i != 2)).collect();
-        let report = BatchReport::from_records(&meta, &records);
-        assert_eq!((report.trials, report.successes), (4, 3));
-        assert_eq!(report.failures.get("slipped"), Some(&1));
-        assert_eq!(report.sorting.accept_reject.truly_accept.accept, 3);
-        assert_eq!(report.sorting.accept_reject.truly_accept.reject, 1);
-        assert_eq!(report.sorting.part_type["a"]["b"], 1);
-        let roundness = report.metrology.roundness_error_mm.as_ref();
-        assert!((roundness.map_or(0.0, |s| s.max_mm) - 0.03).abs() < 1e-12);
-        assert!(report.metrology.bore_diameter_error_mm.is_none());
-        // 3 parts over 40 s of cycle time.
-        assert!((report.parts_per_minute.unwrap_or(0.0) - 4.5).abs() < 1e-12);
-        assert_eq!(report.gate.as_ref().map(|g| g.passed), Some(false));
-        assert_eq!(exit_code(&report), 1);
-        let table = report.summary_table();
-        assert!(table.contains("ORACLE"), "{table}");
-        assert!(table.contains("slipped"), "{table}");
-        let json = serde_json::to_value(&report).unwrap_or_default();
-        assert_eq!(json["perception"], "oracle");
     }
 }

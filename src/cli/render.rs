@@ -15,7 +15,7 @@ use anyhow::{Context, Result};
 use clap::Args;
 use nalgebra::Isometry3;
 use serde::Serialize;
-use twincell::perception::calibration::CameraCalibration;
+use twincell::camera::CameraCalibration;
 use twincell::render::{CameraRig, ObjectTruth, Renderer, RendererOptions, Shot, dataset};
 use twincell::scenario::Scenario;
 

@@ -175,3 +175,8 @@ impl ArmModel {
         Ok(())
     }
 }
+
+/// The tool centre point of the project's gripper in the flange frame: midway between the pads.
+pub fn gripper_tcp() -> Isometry3<f64> {
+    Isometry3::translation(0.0, 0.0, 0.125)
+}

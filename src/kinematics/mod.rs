@@ -11,7 +11,7 @@ mod forward;
 mod inverse;
 mod jacobian;
 
-pub use arm_model::{ArmModel, DhRow, JointLimit};
+pub use arm_model::{ArmModel, DhRow, JointLimit, gripper_tcp};
 pub use error::KinematicsError;
 pub use forward::{flange_pose, link_frames, tcp_pose};
 pub use inverse::{AnalyticIk, IkSolutions, IkSolver};

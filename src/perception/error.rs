@@ -38,3 +38,12 @@ pub enum PerceptionError {
         y_px: f64,
     },
 }
+
+impl From<crate::camera::RayMissesPlane> for PerceptionError {
+    fn from(e: crate::camera::RayMissesPlane) -> Self {
+        Self::RayMissesPlane {
+            x_px: e.x_px,
+            y_px: e.y_px,
+        }
+    }
+}

@@ -1,9 +1,21 @@
-//! Motion planning: joint-space trajectories within the arm's limits.
+//! Motion planning: from a percept and the cell's obstacles to collision-checked joint-space
+//! trajectories within the arm's limits.
 
 mod collision;
+mod percept;
+mod pick_planner;
+#[cfg(test)]
+mod pick_planner_tests;
+mod robot_shapes;
 mod straight_line;
 mod trajectory;
 
 pub use collision::{Carried, CollisionChecker, CollisionHit, LinkMount, Obstacle, RobotShape};
+pub use percept::{PerceivedObstacle, Percept, bottle_obstacle, part_obstacle};
+pub use pick_planner::{
+    GRASP_TCP_ABOVE_BOTTOM_M, PART_OBSTACLE, PickPlan, PickPlanner, PlacePlan, bin_slot,
+    scenery_obstacles,
+};
+pub use robot_shapes::capture_robot_shapes;
 pub use straight_line::straight_line;
 pub use trajectory::{JointTrajectory, TrajectorySample};

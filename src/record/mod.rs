@@ -1,5 +1,5 @@
 //! Rerun recordings of trials (`twincell run --record FILE.rrd` or `--connect`): a
-//! [`crate::cell::TrialObserver`] that logs what the cell does, for the Rerun viewer of the
+//! [`crate::task::TrialObserver`] that logs what the cell does, for the Rerun viewer of the
 //! matching version (0.36).
 //!
 //! One recording holds a whole batch. Every trial lives under its own entity path, so trials

@@ -7,7 +7,7 @@ use std::time::Duration;
 use rerun::{RecordingStream, RecordingStreamBuilder};
 
 use super::TrialRecording;
-use crate::cell::{TrialObserver, TrialObserverFactory};
+use crate::task::{TrialObserver, TrialObserverFactory};
 
 /// The application id recordings carry (the viewer groups recordings by it).
 pub const APPLICATION_ID: &str = "twincell";

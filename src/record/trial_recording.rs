@@ -11,8 +11,8 @@ use rerun::{
 
 use super::convert::{mesh_3d, transform};
 use super::{METROLOGY, OUTCOMES, PART_TIMELINE, SIM_TIME, TRIAL_TIMELINE, trial_root};
-use crate::batch::{DecisionRecord, Outcome, PartRecord, TrialRecord};
-use crate::cell::{CellView, PerceptionFrame, TrialObserver};
+use crate::outcome::{DecisionRecord, Outcome, PartRecord, TrialRecord};
+use crate::task::{CellView, PerceptionFrame, TrialObserver};
 use crate::render::mesh::Mesh;
 use crate::render::{CameraRig, ObjectKind, Scene};
 use crate::scenario::Scenario;
@@ -104,7 +104,8 @@ impl TrialRecording {
 
     /// The parts and bottles that appeared since the last sample.
     fn add_new_bodies(&mut self, view: &CellView<'_>) {
-        for (i, (body, part)) in view.parts.iter().enumerate().skip(self.parts_seen) {
+        for (i, item) in view.parts().iter().enumerate().skip(self.parts_seen) {
+            let (body, part) = (&item.body, &item.instance);
             let mesh = Mesh::axle_part(&part.bore, part.outer_radius_m, part.height_m);
             self.add_moving(format!("cell/part_{i:02}"), *body, &mesh);
             self.log(
@@ -118,7 +119,7 @@ impl TrialRecording {
                 .with_level(TextLogLevel::DEBUG),
             );
         }
-        self.parts_seen = view.parts.len();
+        self.parts_seen = view.parts().len();
         for body in view.bottles() {
             if self.bottles_seen.contains(&body) {
                 continue;

@@ -9,7 +9,7 @@
 use nalgebra::{Isometry3, Point3, Vector3};
 
 use super::mesh::MeshVertex;
-use crate::perception::calibration::CameraCalibration;
+use crate::camera::CameraCalibration;
 
 /// Meshes with at most this many triangles are checked for being closed and convex, so they can
 /// hide what lies behind them.

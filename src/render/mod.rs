@@ -6,7 +6,7 @@
 //! - [`renderer`]: a wgpu device (a GPU when there is one, else the software adapter: Mesa
 //!   llvmpipe through GL/EGL, or lavapipe through Vulkan), 4x MSAA (optionally supersampled),
 //!   an offscreen target read back into an [`image::RgbImage`]; no window, no surface. Its
-//!   projection is built from a [`crate::perception::calibration::CameraCalibration`], so the
+//!   projection is built from a [`crate::camera::CameraCalibration`], so the
 //!   renderer and perception share one camera model.
 //! - [`sensor`]: seeded sensor effects after the render (gradient, vignetting, noise,
 //!   salt-and-pepper); [`shot`]: a staged pick-station shot with drawn realism and ground truth;

@@ -13,7 +13,7 @@ use super::cull::{Bounds, View};
 use super::error::RenderError;
 use super::mesh::MeshVertex;
 use super::scene::{ObjectKind, Scene, SceneObject};
-use crate::perception::calibration::CameraCalibration;
+use crate::camera::CameraCalibration;
 
 /// Nearest depth drawn, m.
 const NEAR_M: f64 = 0.02;

@@ -11,7 +11,8 @@ use rapier3d::prelude::{Collider, RigidBodyHandle};
 
 use super::material::Material;
 use super::mesh::{Mesh, ROUND_SEGMENTS};
-use crate::cell::{Cell, PartInstance, Tag};
+use crate::cell::Cell;
+use crate::sim::{PartInstance, Tag};
 use crate::math::{pose_from_physics, vector_from_physics};
 use crate::scenario::Scenario;
 
@@ -69,18 +70,18 @@ impl Scene {
             };
             let world_from_body = pose_from_physics(rb.position());
             let tag = collider.user_data;
-            if tag == Tag::Part as u128
-                || tag == Tag::Bottle as u128
-                || tag == Tag::PhotoEye as u128
+            if tag == Tag::Part.bits()
+                || tag == Tag::Bottle.bits()
+                || tag == Tag::PhotoEye.bits()
             {
                 // Drawn once per body below (the photo-eye's beam is invisible).
                 continue;
             }
-            let material = if tag == Tag::Belt as u128 {
+            let material = if tag == Tag::Belt.bits() {
                 Material::BELT
-            } else if tag == Tag::Bin as u128 {
+            } else if tag == Tag::Bin.bits() {
                 Material::BIN
-            } else if tag == Tag::Robot as u128 {
+            } else if tag == Tag::Robot.bits() {
                 match link_name(body) {
                     Some(name) if name.starts_with("finger") || name.starts_with("gripper") => {
                         Material::GRIPPER
@@ -99,7 +100,7 @@ impl Scene {
             let body_from_collider = collider
                 .position_wrt_parent()
                 .map_or_else(Isometry3::identity, pose_from_physics);
-            let name = if tag == Tag::Belt as u128 {
+            let name = if tag == Tag::Belt.bits() {
                 "belt".to_string()
             } else {
                 link_name(body).unwrap_or("scenery").to_string()
@@ -113,15 +114,19 @@ impl Scene {
             });
         }
         let mut scene = Self { objects };
-        if let Some(world_from_part) = cell.body_pose(cell.part_body) {
-            scene.push_part(cell.part_body, world_from_part, &cell.part);
+        // Every part and bottle on the belt, in the registry's order.
+        for part in cell.items.parts() {
+            if let Some(world_from_part) = cell.body_pose(part.body) {
+                scene.push_part(part.body, world_from_part, &part.instance);
+            }
         }
-        if let Some(bottle) = cell.bottle_body
-            && let Some(world_from_bottle) = cell.body_pose(bottle)
-        {
+        for bottle in cell.items.bottles() {
+            let Some(world_from_bottle) = cell.body_pose(bottle.body) else {
+                continue;
+            };
             scene.objects.push(SceneObject {
                 name: "bottle".into(),
-                body: Some(bottle),
+                body: Some(bottle.body),
                 world_from_object: world_from_bottle,
                 mesh: Arc::new(Mesh::bottle(
                     scenario.bottle.radius_m,

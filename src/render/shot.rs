@@ -13,7 +13,7 @@ use super::renderer::{Exposure, GpuScene, Light, MAX_STAIN_BLOBS, Renderer, Stai
 use super::scene::{ObjectKind, Scene, SceneObject};
 use super::sensor::SensorDraw;
 use crate::cell::{Cell, CellError};
-use crate::perception::calibration::CameraCalibration;
+use crate::camera::CameraCalibration;
 use crate::rng::SimRng;
 use crate::scenario::{Scenario, SensorSection};
 
@@ -174,17 +174,20 @@ impl Shot {
         let mut rng = SimRng::derive(scenario.seed ^ SHOT_SALT, index);
         let cell = Cell::build(scenario, urdf, &mut rng)?;
         let mut scene = Scene::from_cell(&cell, scenario);
-        let part = &cell.part;
-        let Some(world_from_part) = cell.body_pose(cell.part_body) else {
+        let Some(first) = cell.items.parts().first() else {
+            return Err(ShotError::Camera("the cell has no part".into()));
+        };
+        let (part, part_body) = (&first.instance, first.body);
+        let Some(world_from_part) = cell.body_pose(part_body) else {
             return Err(ShotError::Camera("the part has no body".into()));
         };
         let face_z = world_from_part.translation.z + part.height_m / 2.0;
         let (x_low, x_high) = visible_x_range(rig, face_z, part.outer_radius_m + 0.01)?;
         let x = rng.range(x_low, x_high);
         let offset = Vector3::new(x - world_from_part.translation.x, 0.0, 0.0);
-        scene.translate_body(cell.part_body, &offset);
-        if let Some(bottle) = cell.bottle_body {
-            scene.translate_body(bottle, &offset);
+        scene.translate_body(part_body, &offset);
+        for bottle in cell.items.bottles() {
+            scene.translate_body(bottle.body, &offset);
         }
         Ok(Self::of_scene(scenario, rig, sensor, scene, &mut rng))
     }
@@ -454,7 +457,7 @@ fn clip_to_rect(mut polygon: Vec<[f64; 2]>, rect: [f64; 4]) -> Vec<[f64; 2]> {
 fn bore_truth(
     camera: &CameraCalibration,
     object: &SceneObject,
-    part: &crate::cell::PartInstance,
+    part: &crate::sim::PartInstance,
     face_z: f64,
 ) -> Option<BoreTruth> {
     let top = part.height_m / 2.0;

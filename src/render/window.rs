@@ -5,7 +5,7 @@
 use image::RgbImage;
 
 use super::{GpuScene, RenderError, Renderer, Shot};
-use crate::perception::calibration::CameraCalibration;
+use crate::camera::CameraCalibration;
 
 /// Window sides are rounded up to a multiple of this many sensor pixels, so that a renderer
 /// meets only a few window sizes (it keeps render targets per size).

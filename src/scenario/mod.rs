@@ -26,6 +26,12 @@ pub struct Scenario {
     pub parts_per_trial: u32,
     /// Roundness tolerance: parts whose bore is out of round by more go to the reject bin, mm.
     pub roundness_tolerance_mm: f64,
+    /// Half-width of the band around the tolerance inside which no measurement can prove
+    /// conformance either way (ISO 14253-1's uncertainty zone): the metrology's expanded
+    /// uncertainty (k = 2) of roundness, mm. A part whose true roundness lies inside it may go to
+    /// its accept bin or the reject bin; reports count such parts apart.
+    #[serde(default = "default_roundness_uncertainty_mm")]
+    pub roundness_uncertainty_mm: f64,
     /// Physics settings.
     #[serde(default)]
     pub physics: PhysicsSection,
@@ -69,6 +75,14 @@ fn one() -> u32 {
     1
 }
 
+/// The metrology's expanded uncertainty of roundness (k = 2) in the closed loop, mm, for
+/// scenarios that do not give their own.
+pub const DEFAULT_ROUNDNESS_UNCERTAINTY_MM: f64 = 0.05;
+
+fn default_roundness_uncertainty_mm() -> f64 {
+    DEFAULT_ROUNDNESS_UNCERTAINTY_MM
+}
+
 /// Physics settings.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -85,12 +99,12 @@ pub struct PhysicsSection {
 
 impl Default for PhysicsSection {
     fn default() -> Self {
-        let world = crate::sim::WorldParams::default();
+        // Why each value: see `sim::World::new`, which turns these into solver settings.
         Self {
-            dt_s: world.dt_s,
-            solver_iterations: world.solver_iterations,
-            contact_frequency_hz: world.contact_frequency_hz,
-            contact_damping_ratio: world.contact_damping_ratio,
+            dt_s: 1.0 / 240.0,
+            solver_iterations: 8,
+            contact_frequency_hz: 60.0,
+            contact_damping_ratio: 2.0,
         }
     }
 }

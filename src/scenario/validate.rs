@@ -100,6 +100,12 @@ impl Scenario {
             return Err(c.fail("parts_per_trial", "must lie in [1, 1000]"));
         }
         c.positive("roundness_tolerance_mm", self.roundness_tolerance_mm)?;
+        c.in_range(
+            "roundness_uncertainty_mm",
+            self.roundness_uncertainty_mm,
+            0.0,
+            self.roundness_tolerance_mm,
+        )?;
         c.in_range("physics.dt_s", self.physics.dt_s, 1e-4, 0.02)?;
         c.in_range(
             "physics.contact_frequency_hz",
@@ -415,7 +421,7 @@ impl Scenario {
                 format!("needs exactly one reject bin, got {rejects}"),
             ));
         }
-        let arm = ArmModel::aubo_i5().with_tool(crate::cell::gripper_tcp());
+        let arm = ArmModel::aubo_i5().with_tool(crate::kinematics::gripper_tcp());
         let Ok(ik) = AnalyticIk::new(arm) else {
             return Err(c.fail("robot", "arm geometry unsupported"));
         };

@@ -6,7 +6,7 @@ use nalgebra::Isometry3;
 use rapier3d::prelude::*;
 use rapier3d_urdf::{UrdfLoaderOptions, UrdfMultibodyOptions, UrdfRobot};
 
-use super::{SimError, World};
+use super::{SimError, Tag, World};
 use crate::kinematics::{DOF, JointVector};
 use crate::math::{pose_from_physics, pose_to_physics};
 
@@ -26,6 +26,8 @@ pub const ARM_JOINTS: [&str; DOF] = [
 ];
 /// Names of the two finger joints in the URDF.
 pub const FINGER_JOINTS: [&str; 2] = ["finger_left_joint", "finger_right_joint"];
+/// Names of the finger links, left then right: their contacts with a part make the grip.
+pub const FINGER_LINKS: [&str; 2] = ["finger_left_Link", "finger_right_Link"];
 /// Jaw travel speed, m/s per jaw.
 pub const JAW_SPEED_M_S: f64 = 0.1;
 /// Index of a revolute joint's angle in a multibody joint's coordinates.
@@ -324,4 +326,40 @@ fn with_joint_mut(
     {
         edit(&mut link.joint.data);
     }
+}
+
+impl SimArm {
+    /// Tags every robot collider as [`Tag::Robot`]; finger pads get `pad_friction`, the rest of
+    /// the robot a moderate one.
+    pub fn dress_colliders(&self, world: &mut World, pad_friction: f64) {
+    let physics = &mut world.physics;
+    for (name, body) in self.link_bodies() {
+        let friction = if name.starts_with("finger") {
+            pad_friction
+        } else {
+            0.5
+        };
+        let Some(rb) = physics.bodies.get(*body) else {
+            continue;
+        };
+        let handles: Vec<ColliderHandle> = rb.colliders().to_vec();
+        for handle in handles {
+            if let Some(collider) = physics.colliders.get_mut(handle) {
+                collider.set_friction(friction as f32);
+                if name.starts_with("finger") {
+                    // Rubber pads grip with their own coefficient, whatever they touch.
+                    collider.set_friction_combine_rule(CoefficientCombineRule::Max);
+                    // Contacts of a hooked collider are never recycled: rapier otherwise keeps
+                    // a pair's contacts, normal and lever arms frozen in world space while the
+                    // pair's relative pose barely changes, which is exactly a held part. As
+                    // the arm turned the gripper (up to 11 deg before a refresh) the pads'
+                    // squeeze then pushed along stale normals, twisted the part and walked it
+                    // out of the jaws. Pad contacts are rebuilt every step instead.
+                    collider.set_active_hooks(ActiveHooks::MODIFY_SOLVER_CONTACTS);
+                }
+                collider.user_data = Tag::Robot as u128;
+            }
+        }
+    }
+}
 }

@@ -1,9 +1,19 @@
-//! The physics world: the only stage that mutates simulation state.
+//! The physics world: the only stage that mutates simulation state. It owns every body
+//! insertion (the arm, the belt's hooks, the parts and bottles and their registry) and the tags
+//! that say what each collider is.
 
 mod arm;
+mod conveyor;
 mod error;
+mod items;
+mod part;
+mod tag;
 mod world;
 
-pub use arm::{ARM_JOINTS, ArmGains, JAW_SPEED_M_S, SimArm};
+pub use arm::{ARM_JOINTS, ArmGains, FINGER_JOINTS, FINGER_LINKS, JAW_SPEED_M_S, SimArm};
+pub use conveyor::ConveyorHooks;
 pub use error::SimError;
+pub use items::{BottleItem, BottlePlacement, ItemSet, PartItem, body_pose};
+pub use part::{BoreForm, PartInstance};
+pub use tag::Tag;
 pub use world::{World, WorldParams};

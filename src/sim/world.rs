@@ -2,6 +2,8 @@
 
 use rapier3d::prelude::*;
 
+use crate::scenario::PhysicsSection;
+
 /// Fixed parameters of a physics world.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct WorldParams {
@@ -17,15 +19,22 @@ pub struct WorldParams {
     pub contact_damping_ratio: f64,
 }
 
+impl WorldParams {
+    /// The world a scenario's `[physics]` section asks for, under standard gravity.
+    pub fn from_section(physics: &PhysicsSection) -> Self {
+        Self {
+            dt_s: physics.dt_s,
+            gravity_m_s2: 9.81,
+            solver_iterations: physics.solver_iterations,
+            contact_frequency_hz: physics.contact_frequency_hz,
+            contact_damping_ratio: physics.contact_damping_ratio,
+        }
+    }
+}
+
 impl Default for WorldParams {
     fn default() -> Self {
-        Self {
-            dt_s: 1.0 / 240.0,
-            gravity_m_s2: 9.81,
-            solver_iterations: 8,
-            contact_frequency_hz: 60.0,
-            contact_damping_ratio: 2.0,
-        }
+        Self::from_section(&PhysicsSection::default())
     }
 }
 

@@ -59,6 +59,8 @@ pub enum FailureReason {
     Panic,
     /// The camera pipeline could not run (no renderer, a detector error).
     PerceptionError,
+    /// Perception took a part for a bottle or a bottle for a part at the photo-eye.
+    Misidentified,
 }
 
 impl FailureReason {
@@ -78,6 +80,7 @@ impl FailureReason {
             Self::PhysicsBlowUp => "physics_blow_up",
             Self::Panic => "panic",
             Self::PerceptionError => "perception_error",
+            Self::Misidentified => "misidentified",
         }
     }
 }

@@ -15,8 +15,9 @@ use image::{GrayImage, RgbImage};
 use nalgebra::Point3;
 
 use super::bottle_fit::{BottleFitter, BottlePose};
+use crate::camera::CameraCalibration;
 use crate::detect::{Detection, Detector};
-use crate::perception::calibration::{CameraCalibration, PlaneBore};
+use crate::perception::calibration::{MeasureOnPlane, PlaneBore};
 use crate::perception::roundness::DEFAULT_MAX_UPR;
 use crate::perception::{Bore, BoreDetector, BoreDetectorParams};
 use crate::render::{CameraRig, Renderer, RendererOptions, Scene, SensorWindow, Shot};
@@ -25,6 +26,8 @@ use crate::scenario::Scenario;
 
 /// Share of a part box's side added on every side before the metrology looks inside it.
 const BOX_MARGIN: f64 = 0.15;
+/// A detector box counts as covering a point of the photo-eye's beam within this margin, px.
+const BEAM_MARGIN_PX: f64 = 2.0;
 /// A measured bore diameter further than this from the detected type's nominal one contradicts
 /// the detection, m (neighbouring types differ by at least 4 mm).
 const TYPE_DIAMETER_TOLERANCE_M: f64 = 0.002;
@@ -80,6 +83,27 @@ pub struct BottleSighting {
     pub poses: Vec<BottlePose>,
 }
 
+/// How the look picks the part whose bore it measures.
+#[derive(Debug, Clone, PartialEq)]
+pub enum TargetRule {
+    /// The part whose box centre lies nearest the station's pixel (a single-part trial: the
+    /// part is the only one at the station).
+    NearestStation,
+    /// Whatever breaks the photo-eye's beam, given as points along it in the world: among the
+    /// detections whose boxes cover a projected beam point, the one nearest the station's pixel.
+    /// When that is a bottle no bore is measured.
+    AtBeam(Vec<Point3<f64>>),
+}
+
+/// What the camera takes to be standing at the pick station.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum StationItem {
+    /// A part: [`Sighting::target`].
+    Part,
+    /// A bottle: [`Sighting::bottles`]`[index]`.
+    Bottle(usize),
+}
+
 /// One look at the pick station.
 #[derive(Debug, Clone)]
 pub struct Sighting {
@@ -93,6 +117,8 @@ pub struct Sighting {
     pub other_parts: Vec<PartSighting>,
     /// Bottles in view.
     pub bottles: Vec<BottleSighting>,
+    /// What stands at the station, by the look's [`TargetRule`]; `None` when nothing does.
+    pub at_station: Option<StationItem>,
     /// Wall-clock cost of rendering, detection and metrology, ms.
     pub render_ms: f64,
     /// Detector time, ms.
@@ -198,6 +224,7 @@ impl CameraPerception {
         rng: &mut SimRng,
         station_in_world: &Point3<f64>,
         belt_top_z_m: f64,
+        rule: TargetRule,
     ) -> Result<Sighting, CameraPerceptionError> {
         let mut renderer = take(&self.renderers, || Renderer::new(self.options))?;
         let sighting = self.look_with(
@@ -207,6 +234,7 @@ impl CameraPerception {
             rng,
             station_in_world,
             belt_top_z_m,
+            &rule,
         );
         give_back(&self.renderers, renderer);
         sighting
@@ -214,6 +242,7 @@ impl CameraPerception {
 
     /// [`Self::look`] on one renderer: the frame and the target's area of interest render from
     /// one upload of the scene.
+    #[allow(clippy::too_many_arguments)]
     fn look_with(
         &self,
         renderer: &mut Renderer,
@@ -222,6 +251,7 @@ impl CameraPerception {
         rng: &mut SimRng,
         station_in_world: &Point3<f64>,
         belt_top_z_m: f64,
+        rule: &TargetRule,
     ) -> Result<Sighting, CameraPerceptionError> {
         let started = Instant::now();
         let shot = Shot::of_scene(scenario, &self.rig, &scenario.sensor, scene, rng);
@@ -242,8 +272,49 @@ impl CameraPerception {
         let mut target: Option<(f64, usize)> = None;
         let mut parts = Vec::new();
         let mut bottles = Vec::new();
+        let beam_px: Vec<[f64; 2]> = match rule {
+            TargetRule::NearestStation => Vec::new(),
+            TargetRule::AtBeam(points) => points
+                .iter()
+                .filter_map(|p| self.rig.calibration.project(p))
+                .collect(),
+        };
+        let covers_beam = |box_px: &[f64; 4]| {
+            let [x0, y0, x1, y1] = *box_px;
+            let m = BEAM_MARGIN_PX;
+            beam_px
+                .iter()
+                .any(|p| (x0 - m..=x1 + m).contains(&p[0]) && (y0 - m..=y1 + m).contains(&p[1]))
+        };
+        let station_distance = |box_px: &[f64; 4]| {
+            let [x0, y0, x1, y1] = *box_px;
+            station_px.map(|[u, v]| ((x0 + x1) / 2.0 - u).hypot((y0 + y1) / 2.0 - v))
+        };
+        // At the beam: the nearest covering detection, part or bottle.
+        let mut at_beam: Option<(f64, Option<usize>, Option<usize>)> = None;
         for (index, detection) in detections.iter().enumerate() {
-            if Some(detection.class_id) == self.bottle_class {
+            let box_px = detection.box_px.map(f64::from);
+            let is_bottle = Some(detection.class_id) == self.bottle_class;
+            let is_part = self
+                .type_of_class
+                .get(detection.class_id)
+                .copied()
+                .flatten()
+                .is_some();
+            if matches!(rule, TargetRule::AtBeam(_))
+                && (is_bottle || is_part)
+                && covers_beam(&box_px)
+                && let Some(d) = station_distance(&box_px)
+                && at_beam.is_none_or(|(best, _, _)| d < best)
+            {
+                let (part, bottle) = if is_bottle {
+                    (None, Some(bottles.len()))
+                } else {
+                    (Some(parts.len()), None)
+                };
+                at_beam = Some((d, part, bottle));
+            }
+            if is_bottle {
                 bottles.push(BottleSighting {
                     detection: index,
                     poses: self
@@ -269,6 +340,19 @@ impl CameraPerception {
                 }
             }
             parts.push((index, type_index, centre_px));
+        }
+        let mut at_station = target.map(|_| StationItem::Part);
+        if matches!(rule, TargetRule::AtBeam(_)) {
+            target = None;
+            at_station = None;
+            if let Some((d, part, bottle)) = at_beam {
+                if let Some(part) = part {
+                    target = Some((d, part));
+                    at_station = Some(StationItem::Part);
+                } else if let Some(bottle) = bottle {
+                    at_station = Some(StationItem::Bottle(bottle));
+                }
+            }
         }
         let mut target_sighting = None;
         let mut other_parts = Vec::new();
@@ -337,6 +421,7 @@ impl CameraPerception {
             target: target_sighting,
             other_parts,
             bottles,
+            at_station,
             render_ms,
             detect_ms,
             metrology_ms,

@@ -4,7 +4,7 @@
 
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 
-use crate::perception::calibration::CameraCalibration;
+use crate::camera::CameraCalibration;
 use crate::render::mesh::Mesh;
 use crate::scenario::BottleSection;
 

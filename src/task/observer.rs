@@ -9,16 +9,15 @@
 use nalgebra::Isometry3;
 use rapier3d::prelude::RigidBodyHandle;
 
-use super::{Cell, PartInstance, Tag};
-use crate::batch::TrialRecord;
+use crate::cell::Cell;
 use crate::kinematics::JointVector;
+use crate::outcome::TrialRecord;
 use crate::scenario::Scenario;
+use crate::sim::{FINGER_LINKS, PartItem, Tag};
 
 /// How often a running trial is sampled, per second of simulated time.
 pub const SAMPLE_RATE_HZ: f64 = 30.0;
 
-/// Names of the finger links whose contacts with the part make the grip force, left then right.
-const FINGER_LINKS: [&str; 2] = ["finger_left_Link", "finger_right_Link"];
 
 /// Watches trials. Every hook is called on the thread that runs the trial.
 pub trait TrialObserver {
@@ -41,10 +40,8 @@ pub trait TrialObserverFactory: Send + Sync + std::fmt::Debug {
 /// A read-only view of a running trial's cell.
 #[derive(Clone, Copy)]
 pub struct CellView<'a> {
-    /// The cell: world, arm, bins.
+    /// The cell: world, arm, bins, and the registry of parts and bottles.
     pub cell: &'a Cell,
-    /// Every part the trial has put on the belt so far, with its body.
-    pub parts: &'a [(RigidBodyHandle, PartInstance)],
     /// The task phase running now (`wait`, `approach`, `grasp`, ...).
     pub phase: &'static str,
     /// The joint angles the controller commands, rad.
@@ -53,7 +50,12 @@ pub struct CellView<'a> {
     pub grip_force_limit_n: f64,
 }
 
-impl CellView<'_> {
+impl<'a> CellView<'a> {
+    /// Every part the trial has put on the belt so far, with its body.
+    pub fn parts(&self) -> &'a [PartItem] {
+        self.cell.items.parts()
+    }
+
     /// Simulated time, s.
     pub fn sim_time_s(&self) -> f64 {
         self.cell.world.time_s()
@@ -86,17 +88,9 @@ impl CellView<'_> {
 
     /// Every bottle body in the world, in handle order.
     pub fn bottles(&self) -> Vec<RigidBodyHandle> {
-        let mut bottles: Vec<RigidBodyHandle> = self
-            .cell
-            .world
-            .physics
-            .colliders
-            .iter()
-            .filter(|(_, c)| c.user_data == Tag::Bottle as u128)
-            .filter_map(|(_, c)| c.parent())
-            .collect();
+        let mut bottles: Vec<RigidBodyHandle> =
+            self.cell.items.bottles().iter().map(|b| b.body).collect();
         bottles.sort_by_key(|h| h.into_raw_parts());
-        bottles.dedup();
         bottles
     }
 
@@ -129,7 +123,7 @@ impl CellView<'_> {
                             physics
                                 .colliders
                                 .get(other)
-                                .is_some_and(|c| c.user_data == Tag::Part as u128)
+                                .is_some_and(|c| c.user_data == Tag::Part.bits())
                         })
                 })
                 .map(|pair| f64::from(pair.total_impulse_magnitude()))

@@ -1,0 +1,93 @@
+//! Unit tests of `report.json`'s statistics.
+
+use super::report::*;
+use super::*;
+use crate::batch::{DecisionRecord, FailureReason, PartRecord};
+
+fn close(a: [f64; 2], b: [f64; 2]) -> bool {
+    (a[0] - b[0]).abs() < 5e-5 && (a[1] - b[1]).abs() < 5e-5
+}
+
+#[test]
+fn wilson_matches_known_values() {
+    let w = wilson_interval(49, 50, Z95);
+    assert!(close(w, [0.8950, 0.9965]), "{w:?}");
+    let w = wilson_interval(0, 10, Z95);
+    assert!(close(w, [0.0, 0.2775]), "{w:?}");
+    let w = wilson_interval(10, 10, Z95);
+    assert!(close(w, [0.7225, 1.0]), "{w:?}");
+    let w = wilson_interval(5, 10, Z95);
+    assert!(close(w, [0.2366, 0.7634]), "{w:?}");
+    assert_eq!(wilson_interval(0, 0, Z95), [0.0, 1.0]);
+}
+
+#[test]
+fn percentile_is_nearest_rank() {
+    let v: Vec<f64> = (1..=20).map(f64::from).collect();
+    assert_eq!(percentile(&v, 0.95), Some(19.0));
+    assert_eq!(percentile(&v, 0.5), Some(10.0));
+    assert_eq!(percentile(&[3.0], 0.95), Some(3.0));
+    assert_eq!(percentile(&[], 0.5), None);
+}
+
+fn record(trial: u32, ok: bool) -> TrialRecord {
+    let mut r = if ok {
+        let mut r = TrialRecord::failed(trial, 0, FailureReason::Timeout, "");
+        r.outcome = Outcome::Success;
+        r.failure = None;
+        r.detail = None;
+        r
+    } else {
+        TrialRecord::failed(trial, 0, FailureReason::Slipped, "slid")
+    };
+    r.part = Some(PartRecord {
+        part_type: "a".into(),
+        true_roundness_mm: 0.1,
+        true_bore_diameter_mm: 20.0,
+        truly_acceptable: true,
+        clear_cut: true,
+        correct_bin: "a".into(),
+    });
+    r.decision = Some(DecisionRecord {
+        detected_type: if ok { "a" } else { "b" }.into(),
+        measured_roundness_mm: Some(0.1 + 0.01 * f64::from(trial)),
+        measured_bore_diameter_mm: None,
+        accept: ok,
+        bin: "a".into(),
+        note: None,
+    });
+    r.cycle_time_s = 10.0;
+    r
+}
+
+#[test]
+fn report_counts_from_records() {
+    let meta = ReportMeta {
+        scenario: "s".into(),
+        seed: 1,
+        perception: Perception::Oracle,
+        scenario_trials: 4,
+        shard: None,
+        interrupted: false,
+        min_success: Some(0.8),
+    };
+    let records: Vec<_> = (0..4).map(|i| record(i, i != 2)).collect();
+    let report = BatchReport::from_records(&meta, &records);
+    assert_eq!((report.trials, report.successes), (4, 3));
+    assert_eq!(report.failures.get("slipped"), Some(&1));
+    assert_eq!(report.sorting.accept_reject.truly_accept.accept, 3);
+    assert_eq!(report.sorting.accept_reject.truly_accept.reject, 1);
+    assert_eq!(report.sorting.part_type["a"]["b"], 1);
+    let roundness = report.metrology.roundness_error_mm.as_ref();
+    assert!((roundness.map_or(0.0, |s| s.max_mm) - 0.03).abs() < 1e-12);
+    assert!(report.metrology.bore_diameter_error_mm.is_none());
+    // 3 parts over 40 s of cycle time.
+    assert!((report.parts_per_minute.unwrap_or(0.0) - 4.5).abs() < 1e-12);
+    assert_eq!(report.gate.as_ref().map(|g| g.passed), Some(false));
+    assert_eq!(exit_code(&report), 1);
+    let table = report.summary_table();
+    assert!(table.contains("ORACLE"), "{table}");
+    assert!(table.contains("slipped"), "{table}");
+    let json = serde_json::to_value(&report).unwrap_or_default();
+    assert_eq!(json["perception"], "oracle");
+}

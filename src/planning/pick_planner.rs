@@ -1,0 +1,359 @@
+//! The grasp and place search: from a percept and the cell's obstacles to collision-checked
+//! joint trajectories down to the part, up with it, over to a bin and back home.
+
+use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+use rapier3d::geometry::SharedShape;
+
+use super::{
+    Carried, CollisionChecker, JointTrajectory, Obstacle, Percept, RobotShape, straight_line,
+};
+use crate::cell::{BinBody, SceneryBox};
+use crate::kinematics::{AnalyticIk, ArmModel, IkSolver, JointVector};
+use crate::outcome::{Failure, FailureReason, fail};
+
+/// Height of the TCP above the part's bottom while grasping: the fingertips stop 8 mm above the
+/// belt.
+pub const GRASP_TCP_ABOVE_BOTTOM_M: f64 = 0.023;
+/// Approach and retreat distance above grasp and place poses, m.
+const APPROACH_M: f64 = 0.12;
+/// How far the fingertips reach below the TCP along the tool axis, m.
+const FINGERTIP_BELOW_TCP_M: f64 = 0.015;
+/// Half the width of a finger pad across the jaw axis, m.
+const PAD_HALF_WIDTH_M: f64 = 0.015;
+/// Sample spacing of straight tool lines, m.
+const LINE_STEP_M: f64 = 0.005;
+/// The planner's name for the part while it stands on the belt.
+pub const PART_OBSTACLE: &str = "part";
+/// Distance between neighbouring places for parts in a bin, m.
+const BIN_SLOT_PITCH_M: f64 = 0.09;
+/// Clearance the planner keeps from obstacles, m.
+const PLANNING_MARGIN_M: f64 = 0.008;
+
+/// The motion of a pick: over the part, down to it, up with it.
+#[derive(Debug, Clone)]
+pub struct PickPlan {
+    /// From where the arm stands to above the part, jaws open.
+    pub to_pregrasp: JointTrajectory,
+    /// Straight down to the grasp pose.
+    pub descend: JointTrajectory,
+    /// Straight up with the part.
+    pub lift: JointTrajectory,
+    /// Where the lift ends.
+    pub lift_end: JointVector,
+}
+
+/// The motion of a place: over to the bin, down into it, back home.
+#[derive(Debug, Clone)]
+pub struct PlacePlan {
+    /// From the end of the lift to above the bin slot, carrying.
+    pub transport: JointTrajectory,
+    /// Straight down into the slot.
+    pub lower: JointTrajectory,
+    /// Straight up, then home, jaws open.
+    pub retreat: JointTrajectory,
+}
+
+/// The robot and the cell as the planner sees them, fixed for a trial.
+#[derive(Debug, Clone)]
+pub struct PickPlanner {
+    /// The arm's kinematic model with the gripper's TCP.
+    pub model: ArmModel,
+    /// Its inverse kinematics.
+    pub ik: AnalyticIk,
+    /// The arm's base in the world.
+    pub world_from_base: Isometry3<f64>,
+    /// The robot's collision shapes.
+    pub robot_shapes: Vec<RobotShape>,
+    /// Finger offset at which `robot_shapes` were captured, m.
+    pub finger_reference_m: f64,
+    /// The cell's fixed obstacles, in the arm's base frame.
+    pub obstacles: Vec<Obstacle>,
+    /// Top of the belt, world z, m.
+    pub belt_top_z: f64,
+    /// How much wider than the part the jaws open, m.
+    pub open_clearance_m: f64,
+    /// Share of the joint limits for moves with empty jaws.
+    pub speed_fraction: f64,
+    /// Share of the joint limits for moves carrying a part.
+    pub carry_speed_fraction: f64,
+    /// Where the arm goes home to.
+    pub home_q_rad: JointVector,
+}
+
+/// The cell's scenery as the planner's obstacles, in the arm's base frame.
+pub fn scenery_obstacles(scenery: &[SceneryBox], base_from_world: &Isometry3<f64>) -> Vec<Obstacle> {
+    scenery
+        .iter()
+        .map(|b| Obstacle {
+            name: b.name.clone(),
+            base_from_shape: base_from_world * b.world_from_shape,
+            shape: b.shape.clone(),
+        })
+        .collect()
+}
+
+impl PickPlanner {
+    /// The collision checker for a pick of `percept`'s part: the cell's obstacles, the part
+    /// itself (until the fingers go down around it) and what perception saw near it.
+    pub fn checker_for(&self, percept: &Percept) -> CollisionChecker {
+        let base_from_world = self.world_from_base.inverse();
+        let mut checker = CollisionChecker::new(
+            self.model.clone(),
+            self.robot_shapes.clone(),
+            self.finger_reference_m,
+            self.obstacles.clone(),
+            PLANNING_MARGIN_M,
+        );
+        let part_center = Isometry3::from_parts(
+            Translation3::new(
+                percept.part_xy[0],
+                percept.part_xy[1],
+                self.belt_top_z + percept.part_height_m / 2.0,
+            ),
+            UnitQuaternion::from_euler_angles(std::f64::consts::FRAC_PI_2, 0.0, 0.0),
+        );
+        checker.add_obstacle(Obstacle {
+            name: PART_OBSTACLE.into(),
+            base_from_shape: base_from_world * part_center,
+            shape: SharedShape::cylinder(
+                (percept.part_height_m / 2.0) as f32,
+                percept.part_outer_radius_m as f32,
+            ),
+        });
+        for obstacle in &percept.obstacles {
+            checker.add_obstacle(Obstacle {
+                name: obstacle.name.into(),
+                base_from_shape: base_from_world * obstacle.world_from_shape,
+                shape: obstacle.shape.clone(),
+            });
+        }
+        checker
+    }
+
+    /// How far the jaws open for `percept`'s part, each pad from the centre line, m.
+    pub fn open_offset_m(&self, percept: &Percept) -> f64 {
+        percept.part_outer_radius_m + self.open_clearance_m
+    }
+
+    /// TCP pose in the arm's base frame: pointing down, fingers along world yaw, at world xyz,
+    /// the gripper leaning by `tilt_rad` about its own finger axis (the jaws still close
+    /// horizontally; the wrist swings to one side).
+    fn base_from_tcp(&self, xyz: Vector3<f64>, yaw_rad: f64, tilt_rad: f64) -> Isometry3<f64> {
+        let world_from_tcp = Isometry3::from_parts(
+            Translation3::from(xyz),
+            UnitQuaternion::from_euler_angles(0.0, 0.0, yaw_rad)
+                * UnitQuaternion::from_euler_angles(std::f64::consts::PI, 0.0, 0.0)
+                * UnitQuaternion::from_euler_angles(tilt_rad, 0.0, 0.0),
+        );
+        self.world_from_base.inverse() * world_from_tcp
+    }
+
+    /// The first collision-free pick of `percept`'s part from the arm at `q_now`: upright first,
+    /// then leaning, each at yaws from the one that closes the fingers across the line to the
+    /// nearest obstacle, every IK branch nearest first.
+    pub fn plan_pick(
+        &self,
+        percept: &Percept,
+        checker: &CollisionChecker,
+        q_now: &JointVector,
+    ) -> Result<PickPlan, Failure> {
+        let belt_top = self.belt_top_z;
+        let [x, y] = percept.part_xy;
+        let grasp_z = belt_top + GRASP_TCP_ABOVE_BOTTOM_M;
+        let obstacle_top = percept
+            .obstacles
+            .iter()
+            .map(|o| o.top_z)
+            .fold(belt_top, f64::max);
+        // Lift so the part's bottom clears the bottle and the rails.
+        let lift_z = grasp_z + (obstacle_top - belt_top + 0.04).max(APPROACH_M);
+        // Come down from above the bottle: the fingertips hang 15 mm below the TCP.
+        let approach_z = (grasp_z + APPROACH_M).max(obstacle_top + 0.015 + 0.03);
+        // Fingers close across the line to the bottle, so neither finger passes near it.
+        let nearest = percept.obstacles.iter().min_by(|a, b| {
+            let d = |o: &Isometry3<f64>| (o.translation.x - x).hypot(o.translation.y - y);
+            d(&a.world_from_shape).total_cmp(&d(&b.world_from_shape))
+        });
+        let preferred_yaw = nearest.map_or(0.0, |o| {
+            let t = o.world_from_shape.translation;
+            (t.y - y).atan2(t.x - x) + std::f64::consts::FRAC_PI_2
+        });
+        let open = self.open_offset_m(percept);
+        let speed = self.speed_fraction;
+        let carry = self.carry_speed_fraction;
+        let mut reachable = false;
+        let mut last_hit = String::new();
+        // Upright first, then leaning away from either side: a tall bottle next to the part can
+        // stand where an upright wrist or forearm would pass.
+        let candidates = [0.0, 25.0, -25.0, 40.0, -40.0]
+            .into_iter()
+            .flat_map(|tilt_deg| {
+                [
+                    0.0, 180.0, 30.0, -30.0, 210.0, 150.0, 60.0, -60.0, 90.0, 270.0,
+                ]
+                .into_iter()
+                .map(move |offset_deg: f64| (tilt_deg, offset_deg))
+            });
+        for (tilt_deg, offset_deg) in candidates {
+            let yaw = preferred_yaw + f64::to_radians(offset_deg);
+            let tilt = f64::to_radians(tilt_deg);
+            // A leaning jaw's lower corner hangs deeper: raise the TCP to keep the tips clear.
+            let corner_drop =
+                FINGERTIP_BELOW_TCP_M * (tilt.cos() - 1.0) + PAD_HALF_WIDTH_M * tilt.abs().sin();
+            let grasp_z = grasp_z + corner_drop.max(0.0);
+            let above = self.base_from_tcp(Vector3::new(x, y, approach_z), yaw, tilt);
+            let at = self.base_from_tcp(Vector3::new(x, y, grasp_z), yaw, tilt);
+            let lifted = self.base_from_tcp(Vector3::new(x, y, lift_z), yaw, tilt);
+            // Every arm configuration over the part, nearest first: another wrist or elbow
+            // branch can keep the links off a bottle that the nearest one would hit.
+            for q_above in self.ik.solve(&above).by_distance_from(q_now) {
+                // Straight down onto the part and straight up again: a joint-space move would
+                // swing the open fingers centimetres off the part's axis.
+                let Some(down) = straight_line(&self.ik, &above, &at, &q_above, LINE_STEP_M) else {
+                    continue;
+                };
+                let q_at = down[down.len() - 1];
+                let Some(up) = straight_line(&self.ik, &at, &lifted, &q_at, LINE_STEP_M) else {
+                    continue;
+                };
+                let q_lift = up[up.len() - 1];
+                reachable = true;
+                let to_pregrasp = JointTrajectory::through(&self.model, &[*q_now, q_above], speed);
+                let descend = JointTrajectory::along(&self.model, down, speed * 0.5);
+                let lift = JointTrajectory::through(&self.model, &[q_at, q_lift], carry * 0.5);
+                let hit = checker
+                    .check_trajectory(&descend, open, None, &[PART_OBSTACLE])
+                    .or_else(|| checker.check_trajectory(&to_pregrasp, open, None, &[]));
+                match hit {
+                    Some(hit) => {
+                        last_hit = format!(
+                            "{} would hit {} at yaw {offset_deg} deg",
+                            hit.link, hit.obstacle
+                        )
+                    }
+                    None => {
+                        return Ok(PickPlan {
+                            to_pregrasp,
+                            descend,
+                            lift,
+                            lift_end: q_lift,
+                        });
+                    }
+                }
+            }
+        }
+        if reachable {
+            fail(FailureReason::Collision, last_hit)
+        } else {
+            fail(
+                FailureReason::Unreachable,
+                format!("no IK solution to grasp the part at ({x:.3}, {y:.3})"),
+            )
+        }
+    }
+
+    /// The first collision-free place of `percept`'s part into `bin`'s next free slot (after
+    /// `placed_before` parts) from the lift's end `q_start`.
+    pub fn plan_place(
+        &self,
+        percept: &Percept,
+        bin: &BinBody,
+        placed_before: usize,
+        q_start: &JointVector,
+        checker: &CollisionChecker,
+    ) -> Result<PlacePlan, Failure> {
+        let floor = bin.floor_center + bin_slot(bin, placed_before);
+        let place_z = floor.z + 0.012 + GRASP_TCP_ABOVE_BOTTOM_M;
+        let above_z = floor.z + bin.wall_height + 0.04 + GRASP_TCP_ABOVE_BOTTOM_M;
+        let carried = Carried {
+            tcp_from_shape: Isometry3::from_parts(
+                Translation3::new(
+                    0.0,
+                    0.0,
+                    -(percept.part_height_m / 2.0 - GRASP_TCP_ABOVE_BOTTOM_M),
+                ),
+                UnitQuaternion::from_euler_angles(std::f64::consts::FRAC_PI_2, 0.0, 0.0),
+            ),
+            shape: SharedShape::cylinder(
+                (percept.part_height_m / 2.0) as f32,
+                percept.part_outer_radius_m as f32,
+            ),
+        };
+        let grip = percept.part_outer_radius_m;
+        let open = self.open_offset_m(percept);
+        let speed = self.speed_fraction;
+        let carry = self.carry_speed_fraction;
+        let mut reachable = false;
+        let mut last_hit = String::new();
+        for yaw_deg in [0.0, 90.0, 180.0, 270.0, 45.0, 135.0, 225.0, 315.0] {
+            let yaw = f64::to_radians(yaw_deg);
+            let above = self.base_from_tcp(Vector3::new(floor.x, floor.y, above_z), yaw, 0.0);
+            let at = self.base_from_tcp(Vector3::new(floor.x, floor.y, place_z), yaw, 0.0);
+            for q_above in self.ik.solve(&above).by_distance_from(q_start) {
+                let Some(down) = straight_line(&self.ik, &above, &at, &q_above, LINE_STEP_M) else {
+                    continue;
+                };
+                let mut up = down.clone();
+                up.reverse();
+                reachable = true;
+                let transport = JointTrajectory::through(&self.model, &[*q_start, q_above], carry);
+                let lower = JointTrajectory::along(&self.model, down, carry * 0.5);
+                let retreat = JointTrajectory::along(&self.model, up, speed * 0.5).then(
+                    JointTrajectory::through(&self.model, &[q_above, self.home_q_rad], speed),
+                );
+                let ignore = [PART_OBSTACLE];
+                let hit = checker
+                    .check_trajectory(&lower, grip, Some(&carried), &ignore)
+                    .or_else(|| checker.check_trajectory(&transport, grip, Some(&carried), &ignore))
+                    .or_else(|| checker.check_trajectory(&retreat, open, None, &ignore));
+                match hit {
+                    Some(hit) => {
+                        last_hit = format!(
+                            "{} would hit {} placing at yaw {yaw_deg} deg",
+                            hit.link, hit.obstacle
+                        )
+                    }
+                    None => {
+                        return Ok(PlacePlan {
+                            transport,
+                            lower,
+                            retreat,
+                        });
+                    }
+                }
+            }
+        }
+        if reachable {
+            fail(FailureReason::Collision, last_hit)
+        } else {
+            fail(
+                FailureReason::Unreachable,
+                format!("bin {} is out of reach", bin.name),
+            )
+        }
+    }
+}
+
+/// Where in a bin the next part goes after `placed_before` others, from the floor's centre: the
+/// centre first; then the next free cell of a grid at BIN_SLOT_PITCH_M, nearest the centre
+/// first, so parts stand side by side rather than on top of each other.
+pub fn bin_slot(bin: &BinBody, placed_before: usize) -> Vector3<f64> {
+    if placed_before == 0 {
+        return Vector3::zeros();
+    }
+    let per_side = |size: f64| {
+        ((size - BIN_SLOT_PITCH_M) / BIN_SLOT_PITCH_M)
+            .floor()
+            .max(0.0) as usize
+            + 1
+    };
+    let (nx, ny) = (per_side(bin.size[0]), per_side(bin.size[1]));
+    let mut slots: Vec<Vector3<f64>> = (0..nx * ny)
+        .map(|k| {
+            let offset = |i: usize, n: usize| (i as f64 - (n as f64 - 1.0) / 2.0) * BIN_SLOT_PITCH_M;
+            Vector3::new(offset(k % nx, nx), offset(k / nx, ny), 0.0)
+        })
+        .collect();
+    slots.sort_by(|a, b| a.norm().total_cmp(&b.norm()));
+    slots[placed_before % slots.len()]
+}

@@ -1,0 +1,271 @@
+//! The grasp and place search on percepts and obstacles made by hand: no physics world.
+
+use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
+use rapier3d::geometry::SharedShape;
+
+use super::*;
+use crate::cell::BinBody;
+use crate::kinematics::{AnalyticIk, ArmModel, gripper_tcp, tcp_pose};
+use crate::outcome::FailureReason;
+use crate::scenario::BottleSection;
+
+const BELT_TOP_Z: f64 = 0.70;
+/// The scenarios' home: TCP pointing down 0.3 m in front of the base and 0.4 m above it.
+const HOME: [f64; 6] = [
+    -1.153_817,
+    0.458_529,
+    1.673_047,
+    -0.356_278,
+    std::f64::consts::FRAC_PI_2,
+    0.416_979,
+];
+
+/// The robot as simple shapes on its frames: a wrist drum on the flange, two finger pads.
+fn robot_shapes() -> Vec<RobotShape> {
+    let pad = SharedShape::cuboid(0.006, 0.015, 0.03);
+    let finger = |sign: f64| RobotShape {
+        link: if sign > 0.0 { "finger_left_Link" } else { "finger_right_Link" }.into(),
+        mount: LinkMount::Finger { sign },
+        mount_from_shape: Isometry3::translation(sign * 0.045, 0.0, 0.11),
+        shape: pad.clone(),
+    };
+    vec![
+        RobotShape {
+            link: "wrist3_Link".into(),
+            mount: LinkMount::Dh(6),
+            mount_from_shape: Isometry3::from_parts(
+                Translation3::new(0.0, 0.0, 0.04),
+                UnitQuaternion::from_euler_angles(std::f64::consts::FRAC_PI_2, 0.0, 0.0),
+            ),
+            shape: SharedShape::cylinder(0.04, 0.045),
+        },
+        finger(1.0),
+        finger(-1.0),
+    ]
+}
+
+fn planner() -> PickPlanner {
+    let model = ArmModel::aubo_i5().with_tool(gripper_tcp());
+    let Ok(ik) = AnalyticIk::new(model.clone()) else {
+        panic!("the AUBO i5 model has a closed-form inverse");
+    };
+    PickPlanner {
+        model,
+        ik,
+        world_from_base: Isometry3::translation(0.0, 0.0, 0.6),
+        robot_shapes: robot_shapes(),
+        finger_reference_m: 0.045,
+        obstacles: Vec::new(),
+        belt_top_z: BELT_TOP_Z,
+        open_clearance_m: 0.012,
+        speed_fraction: 0.6,
+        carry_speed_fraction: 0.4,
+        home_q_rad: HOME,
+    }
+}
+
+fn percept(xy: [f64; 2], obstacles: Vec<PerceivedObstacle>) -> Percept {
+    Percept {
+        part_type: "axle_b28".into(),
+        part_xy: xy,
+        part_outer_radius_m: 0.02,
+        part_height_m: 0.05,
+        roundness_mm: Some(0.2),
+        bore_diameter_mm: Some(28.0),
+        inconsistency: None,
+        obstacles,
+    }
+}
+
+fn bottle() -> BottleSection {
+    BottleSection {
+        radius_m: 0.033,
+        height_m: 0.2,
+        ..BottleSection::default()
+    }
+}
+
+/// The gripper's yaw at a joint configuration, world frame, folded to [0, pi) (the jaws are
+/// symmetric).
+fn jaw_yaw(planner: &PickPlanner, q: &[f64; 6]) -> f64 {
+    let world_from_tcp = planner.world_from_base * tcp_pose(&planner.model, q);
+    let x_axis = world_from_tcp.rotation * Vector3::x();
+    x_axis.y.atan2(x_axis.x).rem_euclid(std::f64::consts::PI)
+}
+
+fn tcp_xyz(planner: &PickPlanner, q: &[f64; 6]) -> Vector3<f64> {
+    (planner.world_from_base * tcp_pose(&planner.model, q))
+        .translation
+        .vector
+}
+
+#[test]
+fn a_free_part_is_picked_upright_straight_down() {
+    let planner = planner();
+    let percept = percept([0.05, -0.45], Vec::new());
+    let checker = planner.checker_for(&percept);
+    let Ok(plan) = planner.plan_pick(&percept, &checker, &HOME) else {
+        panic!("no pick for a free part in reach");
+    };
+    let Some(q_at) = plan.descend.end() else {
+        panic!("empty descent");
+    };
+    let at = tcp_xyz(&planner, &q_at);
+    assert!((at.x - 0.05).abs() < 1e-3 && (at.y + 0.45).abs() < 1e-3, "{at:?}");
+    assert!((at.z - (BELT_TOP_Z + GRASP_TCP_ABOVE_BOTTOM_M)).abs() < 1e-3, "{at:?}");
+    // Straight down: every sample of the descent stays over the part's axis.
+    let steps = 40;
+    for k in 0..=steps {
+        let t = plan.descend.duration_s() * f64::from(k) / f64::from(steps);
+        let Some(sample) = plan.descend.sample(t) else {
+            panic!("no sample");
+        };
+        let p = tcp_xyz(&planner, &sample.q);
+        assert!((p.x - 0.05).hypot(p.y + 0.45) < 2e-3, "off axis at {t} s: {p:?}");
+    }
+    // Upright: the tool axis points down.
+    let world_from_tcp = planner.world_from_base * tcp_pose(&planner.model, &q_at);
+    assert!((world_from_tcp.rotation * Vector3::z()).z < -0.999);
+    // The lift ends above where it started.
+    assert!(tcp_xyz(&planner, &plan.lift_end).z > at.z + 0.1);
+}
+
+#[test]
+fn the_jaws_close_across_the_line_to_the_nearest_obstacle() {
+    let planner = planner();
+    for angle_deg in [0.0f64, 45.0, 120.0] {
+        let angle = angle_deg.to_radians();
+        let part = [0.05, -0.45];
+        let at = Point3::new(
+            part[0] + 0.15 * angle.cos(),
+            part[1] + 0.15 * angle.sin(),
+            BELT_TOP_Z,
+        );
+        let standing = Isometry3::translation(at.x, at.y, at.z);
+        let obstacle = bottle_obstacle(&bottle(), &standing, false, 0.0);
+        let percept = percept(part, vec![obstacle]);
+        let checker = planner.checker_for(&percept);
+        let Ok(plan) = planner.plan_pick(&percept, &checker, &HOME) else {
+            panic!("no pick with a bottle 150 mm away at {angle_deg} deg");
+        };
+        let Some(q_at) = plan.descend.end() else {
+            panic!("empty descent");
+        };
+        let expected = (angle + std::f64::consts::FRAC_PI_2).rem_euclid(std::f64::consts::PI);
+        let yaw = jaw_yaw(&planner, &q_at);
+        let diff = (yaw - expected).abs();
+        let diff = diff.min(std::f64::consts::PI - diff);
+        assert!(diff < 1e-3, "bottle at {angle_deg} deg: jaws at {yaw} rad, want {expected}");
+    }
+}
+
+#[test]
+fn a_tall_obstacle_raises_the_approach_and_the_lift() {
+    let planner = planner();
+    let near = Isometry3::translation(0.05 + 0.12, -0.45, BELT_TOP_Z);
+    let with_bottle = percept([0.05, -0.45], vec![bottle_obstacle(&bottle(), &near, false, 0.0)]);
+    let free = percept([0.05, -0.45], Vec::new());
+    let plan = |p: &Percept| {
+        let Ok(plan) = planner.plan_pick(p, &planner.checker_for(p), &HOME) else {
+            panic!("no pick");
+        };
+        plan
+    };
+    let (a, b) = (plan(&with_bottle), plan(&free));
+    let top = |q: &[f64; 6]| tcp_xyz(&planner, q).z;
+    let (Some(a_above), Some(b_above)) = (a.to_pregrasp.end(), b.to_pregrasp.end()) else {
+        panic!("empty approach");
+    };
+    // Fingertips hang 15 mm below the TCP; they pass 30 mm over the 200 mm bottle.
+    assert!(top(&a_above) >= BELT_TOP_Z + 0.2 + 0.045 - 1e-6, "{}", top(&a_above));
+    assert!(top(&a_above) > top(&b_above));
+    assert!(top(&a.lift_end) > top(&b.lift_end));
+}
+
+#[test]
+fn an_obstacle_on_the_part_itself_is_a_collision_and_a_far_part_unreachable() {
+    let planner = planner();
+    // A box standing right where the jaws go down, on both sides of the part.
+    let wall = PerceivedObstacle {
+        name: "bottle",
+        world_from_shape: Isometry3::translation(0.05, -0.45, BELT_TOP_Z + 0.1),
+        shape: SharedShape::cuboid(0.2, 0.2, 0.001),
+        top_z: BELT_TOP_Z + 0.1,
+    };
+    let blocked = percept([0.05, -0.45], vec![wall]);
+    let Err(failure) = planner.plan_pick(&blocked, &planner.checker_for(&blocked), &HOME) else {
+        panic!("a pick through a plate over the part was planned");
+    };
+    assert_eq!(failure.reason, FailureReason::Collision, "{}", failure.detail);
+    let far = percept([2.5, -0.45], Vec::new());
+    let Err(failure) = planner.plan_pick(&far, &planner.checker_for(&far), &HOME) else {
+        panic!("a part 2.5 m away was planned");
+    };
+    assert_eq!(failure.reason, FailureReason::Unreachable);
+}
+
+fn bin() -> BinBody {
+    BinBody {
+        name: "group_b".into(),
+        floor_center: Vector3::new(0.08, 0.50, 0.50),
+        size: [0.20, 0.20],
+        wall_height: 0.08,
+    }
+}
+
+#[test]
+fn bin_slots_fill_from_the_centre_without_repeats() {
+    let bin = bin();
+    assert_eq!(bin_slot(&bin, 0), Vector3::zeros());
+    // 0.2 m at a 0.09 m pitch: a 2 x 2 grid, each cell 0.045 m off the centre both ways.
+    let slots: Vec<Vector3<f64>> = (1..5).map(|k| bin_slot(&bin, k)).collect();
+    for slot in &slots {
+        assert!((slot.x.abs() - 0.045).abs() < 1e-12 && (slot.y.abs() - 0.045).abs() < 1e-12);
+        assert!(slot.x.abs() <= bin.size[0] / 2.0 && slot.y.abs() <= bin.size[1] / 2.0);
+    }
+    for (i, a) in slots.iter().enumerate().take(3) {
+        assert!(slots[i + 1..4].iter().all(|b| (a - b).norm() > 0.05));
+    }
+    // A wider bin has a centre cell, taken after the first part.
+    let wide = BinBody {
+        size: [0.30, 0.30],
+        ..bin
+    };
+    assert!(bin_slot(&wide, 1).norm() < 1e-12);
+    assert!((bin_slot(&wide, 2).norm() - 0.09).abs() < 1e-12);
+}
+
+#[test]
+fn a_place_goes_into_the_slot_and_retreats_home() {
+    let planner = planner();
+    let percept = percept([0.05, -0.45], Vec::new());
+    let checker = planner.checker_for(&percept);
+    let Ok(pick) = planner.plan_pick(&percept, &checker, &HOME) else {
+        panic!("no pick");
+    };
+    let bin = bin();
+    for placed_before in [0, 1] {
+        let Ok(place) = planner.plan_place(&percept, &bin, placed_before, &pick.lift_end, &checker)
+        else {
+            panic!("no place into a reachable bin");
+        };
+        let Some(q_low) = place.lower.end() else {
+            panic!("empty lowering");
+        };
+        let at = tcp_xyz(&planner, &q_low);
+        let slot = bin.floor_center + bin_slot(&bin, placed_before);
+        assert!((at.x - slot.x).hypot(at.y - slot.y) < 1e-3, "{at:?} vs {slot:?}");
+        let Some(home) = place.retreat.end() else {
+            panic!("empty retreat");
+        };
+        assert!(home.iter().zip(HOME).all(|(a, b)| (a - b).abs() < 1e-9));
+    }
+    let far = BinBody {
+        floor_center: Vector3::new(3.0, 0.0, 0.5),
+        ..bin
+    };
+    let Err(failure) = planner.plan_place(&percept, &far, 0, &pick.lift_end, &checker) else {
+        panic!("a bin 3 m away was reachable");
+    };
+    assert_eq!(failure.reason, FailureReason::Unreachable);
+}

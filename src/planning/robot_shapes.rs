@@ -1,0 +1,60 @@
+//! The robot's collision shapes for the planner, read once from the simulated arm.
+
+use nalgebra::Isometry3;
+
+use super::{LinkMount, RobotShape};
+use crate::kinematics::{ArmModel, DOF, link_frames};
+use crate::math::pose_from_physics;
+use crate::sim::{SimArm, World};
+
+/// The robot's collision shapes, mounted on DH frames, captured from the simulated arm standing
+/// at `q` (before the world has stepped).
+pub fn capture_robot_shapes(
+    world: &World,
+    arm: &SimArm,
+    model: &ArmModel,
+    q: &[f64; DOF],
+) -> Vec<RobotShape> {
+    let frames = link_frames(model, q);
+    let base_from_world = arm.world_from_base().inverse();
+    let mut shapes = Vec::new();
+    for (name, body) in arm.link_bodies() {
+        let mount = match name.as_str() {
+            // The base and shoulder sit on the pedestal by design; they are not checked.
+            "shoulder_Link" | "base_link" => continue,
+            "upperArm_Link" => LinkMount::Dh(2),
+            "foreArm_Link" => LinkMount::Dh(3),
+            "wrist1_Link" => LinkMount::Dh(4),
+            "wrist2_Link" => LinkMount::Dh(5),
+            "wrist3_Link" | "gripper_Link" => LinkMount::Dh(6),
+            "finger_left_Link" => LinkMount::Finger { sign: 1.0 },
+            "finger_right_Link" => LinkMount::Finger { sign: -1.0 },
+            _ => continue,
+        };
+        let mount_frame = match mount {
+            LinkMount::Dh(k) => frames[k],
+            LinkMount::Finger { .. } => frames[DOF],
+        };
+        let Some(rb) = world.physics.bodies.get(*body) else {
+            continue;
+        };
+        for handle in rb.colliders() {
+            let Some(collider) = world.physics.colliders.get(*handle) else {
+                continue;
+            };
+            // Colliders' world poses lag their bodies until the next step; compose from the body.
+            let body_from_collider = collider
+                .position_wrt_parent()
+                .map_or_else(Isometry3::identity, pose_from_physics);
+            let shape_in_base =
+                base_from_world * pose_from_physics(rb.position()) * body_from_collider;
+            shapes.push(RobotShape {
+                link: name.clone(),
+                mount,
+                mount_from_shape: mount_frame.inverse() * shape_in_base,
+                shape: collider.shared_shape().clone(),
+            });
+        }
+    }
+    shapes
+}

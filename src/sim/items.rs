@@ -1,0 +1,265 @@
+//! Inserting the movable things on the belt (axle parts, bottles) into the world, and the one
+//! registry that tracks them by body handle.
+
+use nalgebra::{Isometry3, Translation3, UnitQuaternion};
+use rapier3d::prelude::*;
+
+use super::{PartInstance, Tag, World};
+use crate::math::{pose_from_physics, pose_to_physics, vector_to_physics};
+use crate::scenario::BottleSection;
+
+/// A part on the belt (or past it) and its body.
+#[derive(Debug, Clone)]
+pub struct PartItem {
+    /// The part's body.
+    pub body: RigidBodyHandle,
+    /// The part as drawn, with its true bore.
+    pub instance: PartInstance,
+}
+
+/// A bottle on the belt (or past it) and its body.
+#[derive(Debug, Clone, Copy)]
+pub struct BottleItem {
+    /// The bottle's body.
+    pub body: RigidBodyHandle,
+    /// Whether it was put down lying on its side.
+    pub lying: bool,
+}
+
+/// Every part and bottle in the world, in the order they were inserted.
+#[derive(Debug, Clone, Default)]
+pub struct ItemSet {
+    parts: Vec<PartItem>,
+    bottles: Vec<BottleItem>,
+}
+
+impl ItemSet {
+    /// The parts, in insertion order.
+    pub fn parts(&self) -> &[PartItem] {
+        &self.parts
+    }
+
+    /// The bottles, in insertion order.
+    pub fn bottles(&self) -> &[BottleItem] {
+        &self.bottles
+    }
+
+    /// Inserts `part` as a dynamic tube standing on the belt with its centre over `xy`; returns
+    /// its index among the parts.
+    pub fn insert_part(
+        &mut self,
+        world: &mut World,
+        part: PartInstance,
+        xy: [f64; 2],
+        belt_top_z: f64,
+    ) -> usize {
+        let body = insert_part(world, &part, xy, belt_top_z);
+        self.parts.push(PartItem {
+            body,
+            instance: part,
+        });
+        self.parts.len() - 1
+    }
+
+    /// Inserts a bottle with its base centre (or, lying, its middle) over `xy`; returns its
+    /// index among the bottles.
+    pub fn insert_bottle(
+        &mut self,
+        world: &mut World,
+        bottle: &BottleSection,
+        placement: BottlePlacement,
+        belt_top_z: f64,
+    ) -> usize {
+        let body = insert_bottle_at(
+            world,
+            bottle,
+            placement.xy,
+            placement.lying,
+            placement.yaw_rad,
+            belt_top_z,
+        );
+        self.bottles.push(BottleItem {
+            body,
+            lying: placement.lying,
+        });
+        self.bottles.len() - 1
+    }
+
+    /// The part whose body is `body`.
+    pub fn part_of(&self, body: RigidBodyHandle) -> Option<usize> {
+        self.parts.iter().position(|p| p.body == body)
+    }
+
+    /// The bottle whose body is `body`.
+    pub fn bottle_of(&self, body: RigidBodyHandle) -> Option<usize> {
+        self.bottles.iter().position(|b| b.body == body)
+    }
+
+    /// Every movable item's body: the parts, then the bottles.
+    pub fn bodies(&self) -> impl Iterator<Item = RigidBodyHandle> + '_ {
+        self.parts
+            .iter()
+            .map(|p| p.body)
+            .chain(self.bottles.iter().map(|b| b.body))
+    }
+}
+
+/// Where and how a bottle is put on the belt.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BottlePlacement {
+    /// Base centre (standing) or middle (lying) over the belt, world x and y, m.
+    pub xy: [f64; 2],
+    /// Lying on its side, its axis along the belt turned by `yaw_rad`.
+    pub lying: bool,
+    /// Turn about the vertical, rad.
+    pub yaw_rad: f64,
+}
+
+/// Pose of a body in `world`.
+pub fn body_pose(world: &World, body: RigidBodyHandle) -> Option<Isometry3<f64>> {
+    world
+        .physics
+        .bodies
+        .get(body)
+        .map(|b| pose_from_physics(b.position()))
+}
+
+/// Rapier's cylinders run along y; ours stand along z.
+fn z_cylinder_rotation() -> UnitQuaternion<f64> {
+    UnitQuaternion::from_euler_angles(std::f64::consts::FRAC_PI_2, 0.0, 0.0)
+}
+
+/// Inserts the part as a dynamic tube (solid cylinder collider with the tube's mass properties).
+fn insert_part(
+    world: &mut World,
+    part: &PartInstance,
+    xy: [f64; 2],
+    belt_top_z: f64,
+) -> RigidBodyHandle {
+    let center = Isometry3::translation(xy[0], xy[1], belt_top_z + part.height_m / 2.0);
+    let body = world.physics.bodies.insert(
+        RigidBodyBuilder::dynamic()
+            .pose(pose_to_physics(&center))
+            .can_sleep(false)
+            .user_data(Tag::Part as u128),
+    );
+    let (outer, inner, h, m) = (
+        part.outer_radius_m,
+        part.bore_radius_m(),
+        part.height_m,
+        part.mass_kg,
+    );
+    let axial = 0.5 * m * (outer * outer + inner * inner);
+    let transverse = m / 12.0 * (3.0 * (outer * outer + inner * inner) + h * h);
+    let rotation = z_cylinder_rotation();
+    // In the collider's own frame the axis is y.
+    let props = MassProperties::new(
+        Vector::ZERO,
+        m as f32,
+        Vector::new(transverse as f32, axial as f32, transverse as f32),
+    );
+    let collider = ColliderBuilder::new(tube_shape(outer, h))
+        .rotation(vector_to_physics(&rotation.scaled_axis()))
+        .mass_properties(props)
+        .friction(0.6)
+        .user_data(Tag::Part as u128);
+    let physics = &mut world.physics;
+    physics
+        .colliders
+        .insert_with_parent(collider, body, &mut physics.bodies);
+    body
+}
+
+/// Sides of the prism that carries a tube's flanks.
+const TUBE_SIDES: u32 = 32;
+/// Height of the bevel that takes a tube's end faces from its 32-gon to a square, m.
+const TUBE_BEVEL_M: f64 = 0.0005;
+/// Half-diagonal of a tube end face's square over the tube's radius.
+const TUBE_FOOT_SHARE: f64 = 0.85;
+
+/// A tube's collider, axis along y: a convex 32-sided prism, not a round cylinder, so that flat
+/// pads touch it along lines, as real pads touch a tube, and the solver gets several contact
+/// points to resist twisting. Its end faces are squares, bevelled over 0.5 mm into the 32-gon:
+/// contact generation keeps at most four vertices of a face, and the first four of a 32-gon
+/// are a sliver along one edge, on which a standing tube balanced and kept rocking by up to
+/// 2 degrees (the camera saw up to 0.1 mm of false roundness). On a centred square it stands
+/// still.
+fn tube_shape(radius: f64, height: f64) -> SharedShape {
+    let mut points = Vec::with_capacity(2 * TUBE_SIDES as usize + 8);
+    let mut ring = |r: f64, y: f64, sides: u32| {
+        for i in 0..sides {
+            let angle = std::f64::consts::TAU * f64::from(i) / f64::from(sides);
+            points.push(Vector::new(
+                (r * angle.cos()) as f32,
+                y as f32,
+                (r * angle.sin()) as f32,
+            ));
+        }
+    };
+    let (top, flank) = (height / 2.0, height / 2.0 - TUBE_BEVEL_M);
+    for sign in [-1.0, 1.0] {
+        ring(radius, sign * flank, TUBE_SIDES);
+        ring(TUBE_FOOT_SHARE * radius, sign * top, 4);
+    }
+    SharedShape::convex_hull(&points)
+        .unwrap_or_else(|| SharedShape::cylinder(top as f32, radius as f32))
+}
+
+/// Inserts a bottle with its base centre (or, lying, its middle) over `xy` on the belt.
+fn insert_bottle_at(
+    world: &mut World,
+    bottle: &BottleSection,
+    xy: [f64; 2],
+    lying: bool,
+    yaw: f64,
+    belt_top_z: f64,
+) -> RigidBodyHandle {
+    let (z, rotation) = if lying {
+        (
+            belt_top_z + bottle.radius_m,
+            UnitQuaternion::from_euler_angles(0.0, 0.0, yaw)
+                * UnitQuaternion::from_euler_angles(0.0, std::f64::consts::FRAC_PI_2, 0.0),
+        )
+    } else {
+        (belt_top_z, UnitQuaternion::from_euler_angles(0.0, 0.0, yaw))
+    };
+    // The body's origin is the bottle's base centre; its axis is the body's z.
+    let pose = Isometry3::from_parts(Translation3::new(xy[0], xy[1], z), rotation);
+    let pose = if lying {
+        pose * Isometry3::translation(0.0, 0.0, -bottle.height_m / 2.0)
+    } else {
+        pose
+    };
+    let body = world.physics.bodies.insert(
+        RigidBodyBuilder::dynamic()
+            .pose(pose_to_physics(&pose))
+            .can_sleep(false)
+            .user_data(Tag::Bottle as u128),
+    );
+    let shoulder_h = bottle.height_m * 0.72;
+    let neck_h = bottle.height_m - shoulder_h;
+    let axis = z_cylinder_rotation();
+    let parts = [
+        (shoulder_h / 2.0, shoulder_h / 2.0, bottle.radius_m, 0.85),
+        (
+            shoulder_h + neck_h / 2.0,
+            neck_h / 2.0,
+            bottle.radius_m * 0.42,
+            0.15,
+        ),
+    ];
+    let physics = &mut world.physics;
+    for (center_z, half_h, radius, mass_share) in parts {
+        let collider = ColliderBuilder::cylinder(half_h as f32, radius as f32)
+            .translation(Vector::new(0.0, 0.0, center_z as f32))
+            .rotation(vector_to_physics(&axis.scaled_axis()))
+            .mass((bottle.mass_kg * mass_share) as f32)
+            .friction(0.5)
+            .user_data(Tag::Bottle as u128);
+        physics
+            .colliders
+            .insert_with_parent(collider, body, &mut physics.bodies);
+    }
+    body
+}
+

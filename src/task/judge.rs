@@ -1,0 +1,255 @@
+//! Judging a pick cycle against the truth: which bin a part belongs in, whether the bin it
+//! reached is right (with the metrology's uncertainty zone), and what the bottles say.
+
+use crate::outcome::{Failure, FailureReason, PartRecord};
+use crate::scenario::Scenario;
+use crate::sim::PartInstance;
+
+/// The bin a part of `part_type` goes to when accepted or rejected (empty when the scenario has
+/// none).
+pub fn bin_for(scenario: &Scenario, part_type: &str, accept: bool) -> String {
+    let bin = if accept {
+        scenario.accept_bin(part_type)
+    } else {
+        scenario.reject_bin()
+    };
+    bin.map(|b| b.name.clone()).unwrap_or_default()
+}
+
+/// The truth about `part`: its true roundness and diameter, whether it conforms, whether it is
+/// clear of the uncertainty zone, and the bin the truth calls for.
+pub fn part_record(scenario: &Scenario, part: &PartInstance) -> PartRecord {
+    let true_roundness_mm = part.bore.roundness_m() * 1000.0;
+    let truly_acceptable = true_roundness_mm <= scenario.roundness_tolerance_mm;
+    let clear_cut = (true_roundness_mm - scenario.roundness_tolerance_mm).abs()
+        > scenario.roundness_uncertainty_mm;
+    PartRecord {
+        part_type: part.type_name.clone(),
+        true_roundness_mm,
+        true_bore_diameter_mm: part.bore.mean_diameter_m() * 1000.0,
+        truly_acceptable,
+        clear_cut,
+        correct_bin: bin_for(scenario, &part.type_name, truly_acceptable),
+    }
+}
+
+/// Whether `placed_bin` is right for `part`: the bin its true roundness calls for or, for a
+/// part inside the uncertainty zone (not clear-cut), either its type's accept bin or the reject
+/// bin.
+pub fn bin_is_right(scenario: &Scenario, part: &PartRecord, placed_bin: Option<&str>) -> bool {
+    let Some(placed) = placed_bin else {
+        return false;
+    };
+    placed == part.correct_bin
+        || (!part.clear_cut
+            && (placed == bin_for(scenario, &part.part_type, true)
+                || placed == bin_for(scenario, &part.part_type, false)))
+}
+
+/// What was seen of the bottles and the part at the end of a pick cycle.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CycleEvidence<'a> {
+    /// The bin the part rests in, if any.
+    pub placed_bin: Option<&'a str>,
+    /// Whether a bottle was lifted.
+    pub bottle_lifted: bool,
+    /// Whether the robot touched a bottle, and in which phase it first did.
+    pub touch_phase: Option<&'static str>,
+    /// The largest move of a bottle since the belt stopped, m.
+    pub bottle_displacement_m: f64,
+}
+
+impl CycleEvidence<'_> {
+    /// Whether the bottles count as disturbed: touched by the robot, or moved beyond the
+    /// scenario's tolerance.
+    pub fn bottle_disturbed(&self, scenario: &Scenario) -> bool {
+        self.touch_phase.is_some()
+            || self.bottle_displacement_m > scenario.task.bottle_tolerance_m
+    }
+}
+
+/// The failure of a pick cycle on `part`, if any: the controller's own failure first, then a
+/// lifted bottle, a disturbed one, and last the wrong bin.
+pub fn judge_cycle(
+    scenario: &Scenario,
+    part: &PartRecord,
+    controller: Result<(), Failure>,
+    evidence: &CycleEvidence<'_>,
+) -> Option<Failure> {
+    if let Err(failure) = controller {
+        return Some(failure);
+    }
+    if evidence.bottle_lifted {
+        return Some(Failure::new(
+            FailureReason::DistractorPicked,
+            "the bottle was lifted",
+        ));
+    }
+    if evidence.bottle_disturbed(scenario) {
+        let moved_mm = evidence.bottle_displacement_m * 1e3;
+        let detail = match evidence.touch_phase {
+            Some(phase) => {
+                format!("robot touched the bottle during {phase}; it moved {moved_mm:.1} mm")
+            }
+            None => format!("bottle moved {moved_mm:.1} mm"),
+        };
+        return Some(Failure::new(FailureReason::DistractorTouched, detail));
+    }
+    if !bin_is_right(scenario, part, evidence.placed_bin) {
+        return Some(Failure::new(
+            FailureReason::WrongBin,
+            format!(
+                "part in {}, belongs in {}",
+                evidence.placed_bin.unwrap_or("no bin"),
+                part.correct_bin
+            ),
+        ));
+    }
+    None
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sim::BoreForm;
+
+    fn scenario(uncertainty_mm: f64) -> Scenario {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/paper_50.toml");
+        let Ok(mut scenario) = Scenario::load(&path) else {
+            panic!("paper_50.toml does not load");
+        };
+        scenario.roundness_uncertainty_mm = uncertainty_mm;
+        scenario
+    }
+
+    /// A part of `type_name` whose bore is an ellipse out of round by `roundness_mm`.
+    fn part(type_name: &str, roundness_mm: f64) -> PartInstance {
+        PartInstance {
+            type_index: 0,
+            type_name: type_name.into(),
+            outer_radius_m: 0.015,
+            height_m: 0.05,
+            mass_kg: 0.3,
+            bore: BoreForm::Ellipse {
+                a_m: 0.010 + roundness_mm * 1e-3,
+                b_m: 0.010,
+                angle_rad: 0.3,
+            },
+        }
+    }
+
+    fn clean(placed_bin: Option<&str>) -> CycleEvidence<'_> {
+        CycleEvidence {
+            placed_bin,
+            bottle_lifted: false,
+            touch_phase: None,
+            bottle_displacement_m: 0.0,
+        }
+    }
+
+    #[test]
+    fn the_truth_names_the_accept_or_reject_bin() {
+        let scenario = scenario(0.05);
+        let good = part_record(&scenario, &part("axle_b28", 0.2));
+        assert!(good.truly_acceptable && good.clear_cut);
+        assert_eq!(good.correct_bin, "group_b");
+        assert!((good.true_roundness_mm - 0.2).abs() < 1e-9);
+        let bad = part_record(&scenario, &part("axle_c44", 0.8));
+        assert!(!bad.truly_acceptable && bad.clear_cut);
+        assert_eq!(bad.correct_bin, "reject");
+    }
+
+    #[test]
+    fn a_clear_cut_part_must_reach_its_own_bin() {
+        let scenario = scenario(0.05);
+        let good = part_record(&scenario, &part("axle_a20", 0.3));
+        assert!(bin_is_right(&scenario, &good, Some("group_a")));
+        assert!(!bin_is_right(&scenario, &good, Some("reject")));
+        assert!(!bin_is_right(&scenario, &good, Some("group_b")));
+        assert!(!bin_is_right(&scenario, &good, None));
+        let failure = judge_cycle(&scenario, &good, Ok(()), &clean(Some("reject")));
+        let Some(failure) = failure else {
+            panic!("a conforming part in the reject bin passed");
+        };
+        assert_eq!(failure.reason, FailureReason::WrongBin);
+        assert_eq!(failure.detail, "part in reject, belongs in group_a");
+        assert_eq!(
+            judge_cycle(&scenario, &good, Ok(()), &clean(Some("group_a"))),
+            None
+        );
+    }
+
+    #[test]
+    fn inside_the_uncertainty_band_either_verdict_is_right() {
+        let scenario = scenario(0.05);
+        // 0.47 and 0.53 mm lie within 0.05 mm of the 0.5 mm tolerance.
+        for roundness_mm in [0.47, 0.53] {
+            let record = part_record(&scenario, &part("axle_b32", roundness_mm));
+            assert!(!record.clear_cut, "{roundness_mm}");
+            assert!(bin_is_right(&scenario, &record, Some("group_b")));
+            assert!(bin_is_right(&scenario, &record, Some("reject")));
+            // Another type's accept bin is never right.
+            assert!(!bin_is_right(&scenario, &record, Some("group_a")));
+        }
+        // The band is the scenario's: with a narrower one the same part is clear-cut.
+        let narrow = scenario(0.02);
+        let record = part_record(&narrow, &part("axle_b32", 0.47));
+        assert!(record.clear_cut && record.truly_acceptable);
+        assert!(!bin_is_right(&narrow, &record, Some("reject")));
+    }
+
+    #[test]
+    fn bottles_are_judged_before_the_bin() {
+        let scenario = scenario(0.05);
+        let record = part_record(&scenario, &part("axle_a24", 0.1));
+        let lifted = CycleEvidence {
+            bottle_lifted: true,
+            ..clean(Some("group_a"))
+        };
+        let Some(failure) = judge_cycle(&scenario, &record, Ok(()), &lifted) else {
+            panic!("a lifted bottle passed");
+        };
+        assert_eq!(failure.reason, FailureReason::DistractorPicked);
+        let touched = CycleEvidence {
+            touch_phase: Some("descend"),
+            bottle_displacement_m: 0.0002,
+            ..clean(Some("group_a"))
+        };
+        let Some(failure) = judge_cycle(&scenario, &record, Ok(()), &touched) else {
+            panic!("a touched bottle passed");
+        };
+        assert_eq!(failure.reason, FailureReason::DistractorTouched);
+        assert!(failure.detail.contains("during descend"), "{}", failure.detail);
+        // Pushed past the tolerance without a recorded touch (by the part, say).
+        let pushed = CycleEvidence {
+            bottle_displacement_m: scenario.task.bottle_tolerance_m + 0.001,
+            ..clean(Some("group_a"))
+        };
+        assert!(pushed.bottle_disturbed(&scenario));
+        let Some(failure) = judge_cycle(&scenario, &record, Ok(()), &pushed) else {
+            panic!("a pushed bottle passed");
+        };
+        assert_eq!(failure.reason, FailureReason::DistractorTouched);
+        // Moved within the tolerance: not disturbed.
+        let nudged = CycleEvidence {
+            bottle_displacement_m: scenario.task.bottle_tolerance_m / 2.0,
+            ..clean(Some("group_a"))
+        };
+        assert_eq!(judge_cycle(&scenario, &record, Ok(()), &nudged), None);
+    }
+
+    #[test]
+    fn the_controllers_own_failure_comes_first() {
+        let scenario = scenario(0.05);
+        let record = part_record(&scenario, &part("axle_a24", 0.1));
+        let slipped = Failure::new(FailureReason::Slipped, "part slid");
+        let lifted = CycleEvidence {
+            bottle_lifted: true,
+            ..clean(None)
+        };
+        let Some(failure) = judge_cycle(&scenario, &record, Err(slipped), &lifted) else {
+            panic!("a failed cycle passed");
+        };
+        assert_eq!(failure.reason, FailureReason::Slipped);
+    }
+}

@@ -1,0 +1,24 @@
+//! The task layer: one sorting trial as an explicit state machine ([`Phase`]) over the cell,
+//! sequencing perception, planning and control each tick; the stream feeder; the oracle and
+//! camera percept adapters; and the judging of outcomes against the truth.
+
+pub mod bottle_fit;
+pub mod camera_percept;
+mod feeder;
+pub mod judge;
+mod observer;
+mod perceive;
+mod phase;
+mod pick_cycle;
+mod runner;
+mod stream;
+mod trial;
+
+pub use camera_percept::{CameraPerception, StationItem, TargetRule};
+pub use feeder::{FeedItem, Feeder};
+pub use observer::{
+    BoreView, CellView, DetectionView, PerceptionFrame, SAMPLE_RATE_HZ, TrialObserver,
+    TrialObserverFactory,
+};
+pub use phase::{Phase, PhaseDeadline};
+pub use runner::{CellTrialRunner, RunnerError};

@@ -1,0 +1,247 @@
+//! One pick cycle on the part at the photo-eye, as a state machine over [`Phase`]: perceive,
+//! plan, approach, descend, grasp, lift, transport, place, release, retreat; then judged.
+
+use std::time::Instant;
+
+use super::camera_percept::Sighting;
+use super::judge::{self, CycleEvidence};
+use super::phase::Phase;
+use super::trial::Trial;
+use crate::control::HoldMonitor;
+use crate::outcome::{DecisionRecord, Failure, FailureReason, PartRecord, fail};
+use crate::planning::{Percept, PickPlan, PlacePlan};
+use crate::sim::JAW_SPEED_M_S;
+
+/// Time for the grip force to build once the drive reaches its end, s.
+const GRIP_BUILD_S: f64 = 0.1;
+/// Force with which the jaws open, N.
+const OPEN_FORCE_N: f64 = 40.0;
+/// Settle with open jaws over the placed part, s.
+const RELEASE_S: f64 = 0.3;
+/// Settle at home after the retreat, s.
+const HOME_SETTLE_S: f64 = 0.4;
+
+/// What one pick cycle did to its part.
+pub(crate) struct Cycle {
+    pub(crate) part: PartRecord,
+    pub(crate) decision: Option<DecisionRecord>,
+    pub(crate) placed_bin: Option<String>,
+    pub(crate) failure: Option<Failure>,
+    pub(crate) touched: bool,
+    pub(crate) picked: bool,
+    pub(crate) displacement_m: f64,
+    pub(crate) cycle_time_s: f64,
+}
+
+/// What the cycle carries from one phase to the next.
+#[derive(Default)]
+struct CycleState {
+    percept: Option<Percept>,
+    bin: String,
+    pick: Option<PickPlan>,
+    place: Option<PlacePlan>,
+    hold: Option<HoldMonitor>,
+}
+
+impl Trial<'_> {
+    /// The truth about the part being handled.
+    pub(crate) fn part_record(&self) -> PartRecord {
+        let part = &self.cell.items.parts()[self.current].instance;
+        judge::part_record(self.scenario, part)
+    }
+
+    /// A part that never reached the pick station.
+    pub(crate) fn unreached(&self, failure: Failure) -> Cycle {
+        Cycle {
+            part: self.part_record(),
+            decision: None,
+            placed_bin: None,
+            failure: Some(failure),
+            touched: false,
+            picked: false,
+            displacement_m: 0.0,
+            cycle_time_s: 0.0,
+        }
+    }
+
+    /// One pick cycle on the part at the photo-eye (the belt stopped), then judged against the
+    /// truth. `seen` is the camera's look at the station when one was already taken.
+    pub(crate) fn pick_cycle(&mut self, seen: Option<Sighting>) -> Cycle {
+        self.touch_phase = None;
+        let part = self.part_record();
+        let mut decision = None;
+        let result = self.run_cycle(seen, &mut decision);
+        let placed_bin = self.bin_holding_part();
+        let evidence = CycleEvidence {
+            placed_bin: placed_bin.as_deref(),
+            bottle_lifted: self.bottle_lifted(),
+            touch_phase: self.touch_phase.map(Phase::as_str),
+            bottle_displacement_m: self.bottle_displacement_m(),
+        };
+        let failure = judge::judge_cycle(self.scenario, &part, result, &evidence);
+        let touched = evidence.bottle_disturbed(self.scenario);
+        let (picked, displacement_m) = (evidence.bottle_lifted, evidence.bottle_displacement_m);
+        Cycle {
+            part,
+            decision,
+            placed_bin,
+            failure,
+            touched,
+            picked,
+            displacement_m,
+            cycle_time_s: self
+                .pick_time_s
+                .map_or(0.0, |t| self.cell.world.time_s() - t),
+        }
+    }
+
+    /// Steps the cycle's phases in order until the arm is home or one fails; `decision` is filled
+    /// once perception has decided.
+    fn run_cycle(
+        &mut self,
+        seen: Option<Sighting>,
+        decision: &mut Option<DecisionRecord>,
+    ) -> Result<(), Failure> {
+        let mut state = CycleState::default();
+        let mut seen = seen;
+        let mut phase = Phase::Perceive;
+        loop {
+            self.phase = phase;
+            match phase {
+                Phase::Perceive => {
+                    let percept = self.perceive(seen.take())?;
+                    let (recorded, bin) = self.decide(&percept);
+                    *decision = Some(recorded);
+                    self.grip_recipe_n = self.scenario.grip_force_for(&percept.part_type);
+                    state.bin = bin;
+                    state.percept = Some(percept);
+                }
+                Phase::Plan => {
+                    let started = Instant::now();
+                    let planned = self.plan(&state);
+                    self.timing.planning_ms += started.elapsed().as_secs_f64() * 1e3;
+                    let (pick, place) = planned?;
+                    state.pick = Some(pick);
+                    state.place = Some(place);
+                }
+                Phase::Approach => {
+                    let (Some(percept), Some(pick)) = (&state.percept, &state.pick) else {
+                        return fail(FailureReason::Panic, "approach without a plan");
+                    };
+                    let open = self.planner.open_offset_m(percept);
+                    self.gripper.set(open, OPEN_FORCE_N);
+                    let trajectory = pick.to_pregrasp.clone();
+                    self.execute(Phase::Approach, &trajectory, None)?;
+                }
+                Phase::Descend => {
+                    let Some(pick) = &state.pick else {
+                        return fail(FailureReason::Panic, "descent without a plan");
+                    };
+                    let trajectory = pick.descend.clone();
+                    self.execute(Phase::Descend, &trajectory, None)?;
+                }
+                Phase::Grasp => {
+                    let Some(percept) = &state.percept else {
+                        return fail(FailureReason::Panic, "grasp without a percept");
+                    };
+                    self.grasp(percept.part_outer_radius_m)?;
+                    state.hold = Some(HoldMonitor {
+                        tcp_from_part: self.tcp_from_part()?,
+                        slip_tolerance_m: self.scenario.task.slip_tolerance_m,
+                    });
+                }
+                Phase::Lift | Phase::Transport | Phase::Place => {
+                    let (Some(pick), Some(place), Some(hold)) =
+                        (&state.pick, &state.place, &state.hold)
+                    else {
+                        return fail(FailureReason::Panic, "carrying without a plan or a grip");
+                    };
+                    let trajectory = match phase {
+                        Phase::Lift => pick.lift.clone(),
+                        Phase::Transport => place.transport.clone(),
+                        _ => place.lower.clone(),
+                    };
+                    let hold = *hold;
+                    self.execute(phase, &trajectory, Some(&hold))?;
+                }
+                Phase::Release => {
+                    let Some(percept) = &state.percept else {
+                        return fail(FailureReason::Panic, "release without a percept");
+                    };
+                    let open = self.planner.open_offset_m(percept);
+                    self.gripper.set(open, OPEN_FORCE_N);
+                    self.settle(RELEASE_S)?;
+                }
+                Phase::Retreat => {
+                    let Some(place) = &state.place else {
+                        return fail(FailureReason::Panic, "retreat without a plan");
+                    };
+                    let trajectory = place.retreat.clone();
+                    self.execute(Phase::Retreat, &trajectory, None)?;
+                    self.settle(HOME_SETTLE_S)?;
+                    return Ok(());
+                }
+                Phase::Wait | Phase::Pass => {
+                    return fail(FailureReason::Panic, "a pick cycle cannot wait");
+                }
+            }
+            phase = phase.next();
+        }
+    }
+
+    /// The sorting rule: accept only a part whose bore was measured within tolerance and whose
+    /// measurement agrees with the detected type. Returns the decision and its bin.
+    fn decide(&self, percept: &Percept) -> (DecisionRecord, String) {
+        let accept = percept.inconsistency.is_none()
+            && percept
+                .roundness_mm
+                .is_some_and(|r| r <= self.scenario.roundness_tolerance_mm);
+        let bin = judge::bin_for(self.scenario, &percept.part_type, accept);
+        let decision = DecisionRecord {
+            detected_type: percept.part_type.clone(),
+            measured_roundness_mm: percept.roundness_mm,
+            measured_bore_diameter_mm: percept.bore_diameter_mm,
+            accept,
+            bin: bin.clone(),
+            note: percept.inconsistency.clone(),
+        };
+        (decision, bin)
+    }
+
+    /// The pick and the place, both planned before the arm moves.
+    fn plan(&self, state: &CycleState) -> Result<(PickPlan, PlacePlan), Failure> {
+        let Some(percept) = &state.percept else {
+            return fail(FailureReason::Panic, "planning without a percept");
+        };
+        let checker = self.planner.checker_for(percept);
+        let pick = self.planner.plan_pick(percept, &checker, &self.q)?;
+        let Some(bin) = self.cell.bins.iter().find(|b| b.name == state.bin) else {
+            return fail(FailureReason::WrongBin, format!("no bin named {}", state.bin));
+        };
+        let placed_before = self.bin_fill.get(&bin.name).copied().unwrap_or(0);
+        let place =
+            self.planner
+                .plan_place(percept, bin, placed_before, &pick.lift_end, &checker)?;
+        Ok((pick, place))
+    }
+
+    /// Closes the jaws with the part type's force: the drive runs its stroke to fully closed,
+    /// then holds; a part between the jaws stops them short, which is how the grasp is detected.
+    fn grasp(&mut self, part_radius_m: f64) -> Result<(), Failure> {
+        self.gripper.set(0.0, self.grip_recipe_n);
+        let stroke_s = self.gripper.target_m() / JAW_SPEED_M_S;
+        self.settle(stroke_s + GRIP_BUILD_S)?;
+        let gap = self.cell.arm.finger_positions_m(&self.cell.world);
+        let closed_on_part = gap[0] + gap[1] > 2.0 * part_radius_m - 0.006;
+        if !closed_on_part {
+            return fail(
+                FailureReason::Slipped,
+                format!(
+                    "jaws closed to {:.1} mm: nothing between them",
+                    (gap[0] + gap[1]) * 1e3
+                ),
+            );
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,147 @@
+//! The cell's trial runner: builds the cell for each trial and runs its task.
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::Instant;
+
+use super::camera_percept::{CameraPerception, CameraPerceptionError};
+use super::observer::TrialObserverFactory;
+use super::trial::Trial;
+use crate::cell::{Cell, CellError};
+use crate::kinematics::AnalyticIk;
+use crate::outcome::{FailureReason, Perception, TrialRecord, TrialRunner};
+use crate::rng::SimRng;
+use crate::scenario::Scenario;
+use crate::sim::SimError;
+
+/// Why a runner could not be set up.
+#[derive(Debug, thiserror::Error)]
+pub enum RunnerError {
+    /// The cell (its arm, its URDF) could not be loaded.
+    #[error(transparent)]
+    Cell(#[from] CellError),
+    /// The camera pipeline (renderer, detector model) could not be set up.
+    #[error(transparent)]
+    Camera(Box<CameraPerceptionError>),
+}
+
+/// Runs sorting trials of a scenario in the cell.
+#[derive(Debug, Clone)]
+pub struct CellTrialRunner {
+    scenario: Scenario,
+    urdf: Option<(PathBuf, String)>,
+    ik: AnalyticIk,
+    camera: Option<Arc<CameraPerception>>,
+    observers: Option<Arc<dyn TrialObserverFactory>>,
+}
+
+impl CellTrialRunner {
+    /// A runner for `scenario` (read from `scenario_path`, which anchors a relative URDF path);
+    /// camera perception uses the shipped detector model (`assets/models/detector.onnx`).
+    pub fn new(
+        scenario: Scenario,
+        scenario_path: &Path,
+        perception: Perception,
+    ) -> Result<Self, RunnerError> {
+        let model = crate::detect::Detector::default_path();
+        Self::with_model(scenario, scenario_path, perception, &model)
+    }
+
+    /// As [`Self::new`], camera perception with the detector model at `model_path` (its model
+    /// card beside it).
+    pub fn with_model(
+        scenario: Scenario,
+        scenario_path: &Path,
+        perception: Perception,
+        model_path: &Path,
+    ) -> Result<Self, RunnerError> {
+        let urdf = match &scenario.robot.urdf {
+            Some(relative) => {
+                let path = scenario_path
+                    .parent()
+                    .unwrap_or(Path::new("."))
+                    .join(relative);
+                let text = std::fs::read_to_string(&path).map_err(|e| {
+                    CellError::Sim(SimError::Urdf {
+                        reason: e.to_string(),
+                        path: path.clone(),
+                    })
+                })?;
+                Some((path, text))
+            }
+            None => None,
+        };
+        let camera = match perception {
+            Perception::Camera => {
+                let camera = CameraPerception::new(&scenario, model_path.to_path_buf())
+                    .map_err(|e| RunnerError::Camera(Box::new(e)))?;
+                Some(Arc::new(camera))
+            }
+            Perception::Oracle => None,
+        };
+        let ik = AnalyticIk::new(Cell::arm_model())
+            .map_err(|e| CellError::Sim(SimError::Kinematics(e)))?;
+        Ok(Self {
+            scenario,
+            urdf,
+            ik,
+            camera,
+            observers: None,
+        })
+    }
+
+    /// Has every trial watched by an observer from `factory` (records stay the same).
+    pub fn observe_with(&mut self, factory: Arc<dyn TrialObserverFactory>) {
+        self.observers = Some(factory);
+    }
+
+    /// The scenario run.
+    pub fn scenario(&self) -> &Scenario {
+        &self.scenario
+    }
+
+    /// Overrides every part type's grip force (for experiments such as a too-weak gripper).
+    pub fn set_grip_force_n(&mut self, force_n: f64) {
+        self.scenario.gripper.grip_force_n = force_n;
+        for part in &mut self.scenario.part_types {
+            part.grip_force_n = None;
+        }
+    }
+}
+
+impl TrialRunner for CellTrialRunner {
+    fn run_trial(&self, index: u32, seed: u64) -> TrialRecord {
+        let started = Instant::now();
+        let mut rng = SimRng::new(seed);
+        let mut observer = self.observers.as_ref().map(|f| f.observer(index));
+        let mut record = match Cell::build(&self.scenario, self.urdf.as_ref(), &mut rng) {
+            Ok(cell) => {
+                let mut trial = Trial::new(
+                    &self.scenario,
+                    self.camera.as_deref(),
+                    &self.ik,
+                    cell,
+                    rng,
+                    seed,
+                );
+                trial.attach(observer.as_deref_mut(), index);
+                if self.scenario.is_stream() {
+                    trial.run_stream(index, seed)
+                } else {
+                    trial.run_single(index, seed)
+                }
+            }
+            Err(e) => TrialRecord::failed(
+                index,
+                seed,
+                FailureReason::PhysicsBlowUp,
+                format!("cell could not be built: {e}"),
+            ),
+        };
+        record.timing.wall_ms = started.elapsed().as_secs_f64() * 1e3;
+        if let Some(observer) = observer.as_mut() {
+            observer.finish_trial(&record);
+        }
+        record
+    }
+}

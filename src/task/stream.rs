@@ -1,0 +1,250 @@
+//! Running a trial: the paper's single part, or a stream in which the feeder puts parts and
+//! bottles on the belt, the belt stops at the photo-eye for each, parts are sorted and bottles
+//! let through. What stops at the photo-eye is identified by perception: in camera mode from the
+//! image alone, in oracle mode from the world.
+
+use nalgebra::Point3;
+
+use super::camera_percept::{StationItem, TargetRule};
+use super::pick_cycle::Cycle;
+use super::trial::Trial;
+use crate::outcome::{
+    Failure, FailureReason, Outcome, StreamPartRecord, StreamRecord, TrialRecord,
+};
+
+/// Spacing of the points along the photo-eye's beam that the camera checks, m.
+const BEAM_SAMPLE_M: f64 = 0.005;
+/// Heights above the belt of the beam's sampled lines (it spans 10-50 mm), m.
+const BEAM_HEIGHTS_M: [f64; 3] = [0.01, 0.03, 0.05];
+
+fn count_u32(n: usize) -> u32 {
+    u32::try_from(n).unwrap_or(u32::MAX)
+}
+
+/// What perception says stopped the belt.
+enum AtEye {
+    /// A part, to be picked; the camera's look, when it took one.
+    Part(Option<super::camera_percept::Sighting>),
+    /// A bottle, to be let through.
+    Bottle,
+}
+
+impl Trial<'_> {
+    /// The paper's trial: one part (and its bottle) from the belt into its bin.
+    pub(crate) fn run_single(mut self, index: u32, seed: u64) -> TrialRecord {
+        let cycle = match self.wait_for_part() {
+            Ok(()) => self.pick_cycle(None),
+            Err(failure) => self.unreached(failure),
+        };
+        let (failure, detail) = split(cycle.failure);
+        let sim_time_s = self.cell.world.time_s();
+        TrialRecord {
+            trial: index,
+            seed,
+            outcome: Outcome::from_failed(failure.is_some()),
+            failure,
+            detail,
+            part: Some(cycle.part),
+            decision: cycle.decision,
+            placed_bin: cycle.placed_bin,
+            distractor_touched: cycle.touched,
+            distractor_picked: cycle.picked,
+            distractor_displacement_mm: cycle.displacement_m * 1e3,
+            cycle_time_s: cycle.cycle_time_s,
+            sim_time_s,
+            timing: self.timing,
+            stream: None,
+        }
+    }
+
+    /// Points along the photo-eye's beam across the belt, world.
+    fn beam_points(&self) -> Vec<Point3<f64>> {
+        let belt = &self.scenario.conveyor;
+        let samples = (belt.width_m / BEAM_SAMPLE_M).ceil().max(1.0) as usize;
+        let mut points = Vec::with_capacity((samples + 1) * BEAM_HEIGHTS_M.len());
+        for height in BEAM_HEIGHTS_M {
+            for k in 0..=samples {
+                let y = belt.belt_center_m[1] - belt.width_m / 2.0
+                    + belt.width_m * k as f64 / samples as f64;
+                points.push(Point3::new(
+                    belt.photo_eye_x_m,
+                    y,
+                    self.cell.belt_top_z + height,
+                ));
+            }
+        }
+        points
+    }
+
+    /// Identifies what stopped the belt. The truth (which body breaks the beam) only chooses
+    /// the part the judge follows; in camera mode the decision comes from the image.
+    fn identify_at_eye(&mut self) -> Result<AtEye, Failure> {
+        let at_eye = self.cell.bodies_at_photo_eye();
+        let true_part = self
+            .cell
+            .items
+            .parts()
+            .iter()
+            .position(|p| at_eye.contains(&p.body));
+        if let Some(i) = true_part {
+            self.current = i;
+        }
+        let true_bottle = self
+            .cell
+            .items
+            .bottles()
+            .iter()
+            .any(|b| at_eye.contains(&b.body));
+        let Some(camera) = self.camera else {
+            return match (true_part, true_bottle) {
+                (Some(_), _) => Ok(AtEye::Part(None)),
+                (None, true) => Ok(AtEye::Bottle),
+                (None, false) => Err(Failure::new(
+                    FailureReason::NotDetected,
+                    "the photo-eye is blocked by neither a part nor a bottle",
+                )),
+            };
+        };
+        let sighting = self.look(camera, TargetRule::AtBeam(self.beam_points()))?;
+        match (sighting.at_station, true_part) {
+            (Some(StationItem::Part), Some(_)) => Ok(AtEye::Part(Some(sighting))),
+            (Some(StationItem::Part), None) => Err(Failure::new(
+                FailureReason::Misidentified,
+                "the camera took the bottle at the photo-eye for a part",
+            )),
+            (Some(StationItem::Bottle(_)), None) => Ok(AtEye::Bottle),
+            (Some(StationItem::Bottle(_)), Some(_)) => Err(Failure::new(
+                FailureReason::Misidentified,
+                "the camera took the part at the photo-eye for a bottle",
+            )),
+            (None, _) => Err(Failure::new(
+                FailureReason::NotDetected,
+                format!(
+                    "nothing detected at the photo-eye ({} detections in view)",
+                    sighting.detections.len()
+                ),
+            )),
+        }
+    }
+
+    /// A stream trial. The stream halts at its first fault, as a cell does.
+    pub(crate) fn run_stream(mut self, index: u32, seed: u64) -> TrialRecord {
+        let planned = self.scenario.parts_per_trial;
+        let mut parts: Vec<StreamPartRecord> = Vec::new();
+        let (mut bottles_passed, mut belt_stops) = (0u32, 0u32);
+        let (mut touched, mut picked, mut displacement_m) = (false, false, 0.0f64);
+        let mut first_stop_s = None;
+        let mut halt: Option<Failure> = None;
+        while parts.len() < planned as usize {
+            if let Err(failure) = self.wait_for_part() {
+                halt = Some(failure);
+                break;
+            }
+            belt_stops += 1;
+            first_stop_s.get_or_insert(self.pick_time_s.unwrap_or(0.0));
+            match self.identify_at_eye() {
+                Ok(AtEye::Part(seen)) => {
+                    let cycle = self.pick_cycle(seen);
+                    touched |= cycle.touched;
+                    picked |= cycle.picked;
+                    displacement_m = displacement_m.max(cycle.displacement_m);
+                    if let Some(bin) = &cycle.placed_bin {
+                        *self.bin_fill.entry(bin.clone()).or_insert(0) += 1;
+                    }
+                    let failed = cycle.failure.is_some();
+                    parts.push(stream_part(count_u32(parts.len()), cycle));
+                    if failed {
+                        break;
+                    }
+                }
+                Ok(AtEye::Bottle) => {
+                    bottles_passed += 1;
+                    if let Err(failure) = self.let_pass() {
+                        halt = Some(failure);
+                        break;
+                    }
+                }
+                Err(failure) => {
+                    halt = Some(failure);
+                    break;
+                }
+            }
+        }
+        let parts_sorted = count_u32(
+            parts
+                .iter()
+                .filter(|p| p.outcome == Outcome::Success)
+                .count(),
+        );
+        let part_fault = parts
+            .iter()
+            .find(|p| p.outcome == Outcome::Failure)
+            .map(|p| {
+                (
+                    p.failure,
+                    format!(
+                        "part {} ({}): {}",
+                        p.index,
+                        p.part.part_type,
+                        p.detail.as_deref().unwrap_or("failed")
+                    ),
+                )
+            });
+        let (failure, detail) = match (part_fault, halt) {
+            (Some((reason, detail)), _) => (reason, Some(detail)),
+            (None, Some(f)) => (
+                Some(f.reason),
+                Some(format!("after {} parts: {}", parts.len(), f.detail)),
+            ),
+            (None, None) => (None, None),
+        };
+        let sim_time_s = self.cell.world.time_s();
+        TrialRecord {
+            trial: index,
+            seed,
+            outcome: Outcome::from_failed(failure.is_some()),
+            failure,
+            detail: detail.map(|d| format!("{parts_sorted}/{planned} parts sorted; {d}")),
+            part: None,
+            decision: None,
+            placed_bin: None,
+            distractor_touched: touched,
+            distractor_picked: picked,
+            distractor_displacement_mm: displacement_m * 1e3,
+            cycle_time_s: first_stop_s.map_or(0.0, |t| sim_time_s - t),
+            sim_time_s,
+            timing: self.timing,
+            stream: Some(StreamRecord {
+                parts_planned: planned,
+                parts_sorted,
+                bottles_passed,
+                belt_stops,
+                parts,
+            }),
+        }
+    }
+}
+
+/// A failure's reason and detail, as the record keeps them.
+fn split(failure: Option<Failure>) -> (Option<FailureReason>, Option<String>) {
+    match failure {
+        Some(f) => (Some(f.reason), Some(f.detail)),
+        None => (None, None),
+    }
+}
+
+/// One part's line in a stream's record.
+fn stream_part(index: u32, cycle: Cycle) -> StreamPartRecord {
+    let failed = cycle.failure.is_some();
+    let (failure, detail) = split(cycle.failure);
+    StreamPartRecord {
+        index,
+        outcome: Outcome::from_failed(failed),
+        failure,
+        detail,
+        part: cycle.part,
+        decision: cycle.decision,
+        placed_bin: cycle.placed_bin,
+        cycle_time_s: cycle.cycle_time_s,
+    }
+}

@@ -1,0 +1,372 @@
+//! One trial's running state and the systems it steps in order each tick: the belt and gripper
+//! drives, the feeder, the physics step, the observer, and the monitors (time-out, blow-up,
+//! robot-bottle contact).
+
+use std::collections::BTreeMap;
+use std::time::Instant;
+
+use nalgebra::Isometry3;
+use rapier3d::prelude::*;
+
+use super::camera_percept::CameraPerception;
+use super::feeder::Feeder;
+use super::observer::{CellView, ObserverSlot, TrialObserver};
+use super::phase::{Phase, PhaseDeadline};
+use crate::cell::Cell;
+use crate::control::{BeltDrive, GripperDrive, HoldMonitor, TrajectoryFollower};
+use crate::kinematics::{AnalyticIk, JointVector};
+use crate::outcome::{Failure, FailureReason, TrialTiming, fail};
+use crate::planning::{JointTrajectory, PickPlanner, capture_robot_shapes, scenery_obstacles};
+use crate::rng::SimRng;
+use crate::scenario::Scenario;
+use crate::sim::Tag;
+
+/// A robot collider this close to a bottle counts as touching it, m.
+const TOUCH_DISTANCE_M: f64 = 0.0005;
+/// Settle after a trajectory's last sample before the next phase, s.
+const TRAJECTORY_SETTLE_S: f64 = 0.15;
+
+/// A trial in progress: the cell, the drives, the monitors, and where the task has got to.
+pub(crate) struct Trial<'a> {
+    pub(crate) scenario: &'a Scenario,
+    /// The camera pipeline; `None` reads the truth from the world (the oracle).
+    pub(crate) camera: Option<&'a CameraPerception>,
+    /// The trial's seed, and the camera shots taken so far (each draws its own realism).
+    pub(crate) seed: u64,
+    pub(crate) shots: u64,
+    pub(crate) cell: Cell,
+    pub(crate) planner: PickPlanner,
+    pub(crate) timing: TrialTiming,
+    pub(crate) belt: BeltDrive,
+    pub(crate) gripper: GripperDrive,
+    /// The part being handled, by its index in the cell's registry.
+    pub(crate) current: usize,
+    /// Each bottle's pose when the belt last stopped (`None` once it has left the belt), by its
+    /// index in the cell's registry.
+    pub(crate) bottle_rest: Vec<Option<Isometry3<f64>>>,
+    pub(crate) feeder: Feeder,
+    /// Parts placed so far per bin (a stream fills its bins slot by slot).
+    pub(crate) bin_fill: BTreeMap<String, usize>,
+    /// The phase in which the robot first touched a bottle in this cycle.
+    pub(crate) touch_phase: Option<Phase>,
+    pub(crate) phase: Phase,
+    /// Grip force per jaw for the detected part type, N.
+    pub(crate) grip_recipe_n: f64,
+    /// The joint angles commanded, rad.
+    pub(crate) q: JointVector,
+    /// When the belt last stopped for a pick.
+    pub(crate) pick_time_s: Option<f64>,
+    observer: ObserverSlot<'a>,
+}
+
+impl<'a> Trial<'a> {
+    /// A trial of `scenario` in `cell` as built; `rng` continues the cell's stream (the feeder
+    /// draws from it).
+    pub(crate) fn new(
+        scenario: &'a Scenario,
+        camera: Option<&'a CameraPerception>,
+        ik: &AnalyticIk,
+        cell: Cell,
+        rng: SimRng,
+        seed: u64,
+    ) -> Self {
+        let model = Cell::arm_model();
+        let home = scenario.robot.home_q_rad;
+        let world_from_base = *cell.arm.world_from_base();
+        let planner = PickPlanner {
+            robot_shapes: capture_robot_shapes(&cell.world, &cell.arm, &model, &home),
+            model,
+            ik: ik.clone(),
+            world_from_base,
+            finger_reference_m: cell.finger_reference_m,
+            obstacles: scenery_obstacles(&cell.scenery, &world_from_base.inverse()),
+            belt_top_z: cell.belt_top_z,
+            open_clearance_m: scenario.gripper.open_clearance_m,
+            speed_fraction: scenario.robot.speed_fraction,
+            carry_speed_fraction: scenario.robot.carry_speed_fraction,
+            home_q_rad: home,
+        };
+        let feeder = Feeder::new(scenario, rng);
+        let bottle_rest = vec![None; cell.items.bottles().len()];
+        Self {
+            scenario,
+            camera,
+            seed,
+            shots: 0,
+            planner,
+            timing: TrialTiming::default(),
+            belt: BeltDrive::default(),
+            gripper: GripperDrive::new(cell.finger_reference_m, scenario.gripper.grip_force_n),
+            current: 0,
+            bottle_rest,
+            feeder,
+            bin_fill: BTreeMap::new(),
+            touch_phase: None,
+            phase: Phase::Wait,
+            grip_recipe_n: scenario.gripper.grip_force_n,
+            q: home,
+            pick_time_s: None,
+            observer: ObserverSlot::default(),
+            cell,
+        }
+    }
+
+    /// Attaches an observer to trial `index` and shows it the cell as built.
+    pub(crate) fn attach(
+        &mut self,
+        observer: Option<&'a mut (dyn TrialObserver + 'static)>,
+        index: u32,
+    ) {
+        self.observer = ObserverSlot::new(observer);
+        let scenario = self.scenario;
+        self.observe(|slot, view| slot.begin(index, scenario, view));
+    }
+
+    /// Hands `f` the observer's slot and a view of the cell as it is now.
+    pub(crate) fn observe(&mut self, f: impl FnOnce(&mut ObserverSlot<'a>, &CellView<'_>)) {
+        let view = CellView {
+            cell: &self.cell,
+            phase: self.phase.as_str(),
+            joint_command_rad: self.q,
+            grip_force_limit_n: self.gripper.force_n(),
+        };
+        f(&mut self.observer, &view);
+    }
+
+    /// The observer's slot (perception frames go through it).
+    pub(crate) fn observer(&mut self) -> &mut ObserverSlot<'a> {
+        &mut self.observer
+    }
+
+    /// Runs the belt until the photo-eye sees something, then stops it and lets things settle;
+    /// notes where every bottle on the belt stands.
+    pub(crate) fn wait_for_part(&mut self) -> Result<(), Failure> {
+        self.phase = Phase::Wait;
+        self.belt.run_at(self.scenario.conveyor.speed_m_s);
+        let deadline = PhaseDeadline::start(Phase::Wait, self.cell.world.time_s(), &self.scenario.task);
+        // Hold the arm at home while waiting.
+        self.hold();
+        while !self.cell.photo_eye_blocked() {
+            if let Some(deadline) = &deadline {
+                deadline.check(self.cell.world.time_s())?;
+            }
+            self.step()?;
+        }
+        self.belt.run_at(0.0);
+        while self.cell.conveyor.speed_m_s() > 0.0 {
+            self.step()?;
+        }
+        self.settle(0.25)?;
+        self.pick_time_s = Some(self.cell.world.time_s());
+        // Bottles still on the belt are watched through the cycle; one that has run off the
+        // belt's end is out of the robot's reach.
+        let belt = &self.scenario.conveyor;
+        let belt_end_x = belt.belt_center_m[0] + belt.length_m / 2.0;
+        for (rest, bottle) in self.bottle_rest.iter_mut().zip(self.cell.items.bottles()) {
+            *rest = self.cell.body_pose(bottle.body).filter(|pose| {
+                pose.translation.x < belt_end_x
+                    && (pose.translation.z - self.cell.belt_top_z).abs() < 0.2
+            });
+        }
+        Ok(())
+    }
+
+    /// Runs the belt until the bottle at the photo-eye has passed it.
+    pub(crate) fn let_pass(&mut self) -> Result<(), Failure> {
+        self.phase = Phase::Pass;
+        self.belt.run_at(self.scenario.conveyor.speed_m_s);
+        let deadline = PhaseDeadline::start(Phase::Pass, self.cell.world.time_s(), &self.scenario.task);
+        while self.cell.photo_eye_blocked() {
+            if let Some(deadline) = &deadline {
+                deadline.check(self.cell.world.time_s())?;
+            }
+            self.step()?;
+        }
+        Ok(())
+    }
+
+    /// The TCP's pose in the world.
+    pub(crate) fn world_from_tcp(&self) -> Isometry3<f64> {
+        self.cell.arm.flange_in_world(&self.cell.world) * self.planner.model.flange_from_tcp
+    }
+
+    /// The handled part's pose in the TCP frame.
+    pub(crate) fn tcp_from_part(&self) -> Result<Isometry3<f64>, Failure> {
+        let body = self.cell.items.parts()[self.current].body;
+        let Some(world_from_part) = self.cell.body_pose(body) else {
+            return fail(FailureReason::PhysicsBlowUp, "part body missing");
+        };
+        Ok(self.world_from_tcp().inverse() * world_from_part)
+    }
+
+    /// Plays a trajectory to the end plus a short settle as `phase`, watching a held part with
+    /// `hold`, and the bottles.
+    pub(crate) fn execute(
+        &mut self,
+        phase: Phase,
+        trajectory: &JointTrajectory,
+        hold: Option<&HoldMonitor>,
+    ) -> Result<(), Failure> {
+        self.phase = phase;
+        let follower = TrajectoryFollower::new(trajectory.clone(), self.cell.world.time_s());
+        let end = self.cell.world.time_s() + trajectory.duration_s() + TRAJECTORY_SETTLE_S;
+        while self.cell.world.time_s() < end {
+            if let Some(sample) = follower.update(&mut self.cell.world, &self.cell.arm) {
+                self.q = sample.q;
+            }
+            self.step_physics()?;
+            if let Some(hold) = hold {
+                // Lowered into the bin, a part that meets the floor is placed, not slipping.
+                let placed = phase == Phase::Place && self.bin_holding_part().is_some();
+                if !placed {
+                    hold.check(phase.as_str(), &self.tcp_from_part()?)?;
+                }
+            }
+        }
+        if let Some(q) = trajectory.end() {
+            self.q = q;
+        }
+        Ok(())
+    }
+
+    /// Holds the arm where it is for `duration_s`.
+    pub(crate) fn settle(&mut self, duration_s: f64) -> Result<(), Failure> {
+        let end = self.cell.world.time_s() + duration_s;
+        while self.cell.world.time_s() < end {
+            self.step()?;
+        }
+        Ok(())
+    }
+
+    fn hold(&mut self) {
+        self.cell
+            .arm
+            .command(&mut self.cell.world, &self.q, &[0.0; 6]);
+    }
+
+    /// One step holding the current arm command.
+    fn step(&mut self) -> Result<(), Failure> {
+        self.hold();
+        self.step_physics()
+    }
+
+    /// One tick: the belt and gripper drives and the feeder, a physics step, the observer, then
+    /// the time-out, blow-up and bottle-contact monitors.
+    fn step_physics(&mut self) -> Result<(), Failure> {
+        let dt = self.cell.world.params().dt_s;
+        let travel_m = self.belt.advance(&self.cell.conveyor, dt);
+        self.feeder
+            .advance(travel_m, self.scenario, &mut self.cell, &mut self.bottle_rest);
+        self.gripper
+            .advance(&mut self.cell.world, &self.cell.arm, dt);
+        let started = Instant::now();
+        self.cell.world.step_with_hooks(&self.cell.conveyor);
+        self.timing.physics_ms += started.elapsed().as_secs_f64() * 1e3;
+        self.observe(|slot, view| slot.step(view));
+        let time_s = self.cell.world.time_s();
+        if time_s > self.scenario.task.trial_timeout_s {
+            return fail(
+                FailureReason::Timeout,
+                format!("trial ran past {:.0} s", self.scenario.task.trial_timeout_s),
+            );
+        }
+        for body in self.cell.items.bodies() {
+            let finite = self
+                .cell
+                .world
+                .physics
+                .bodies
+                .get(body)
+                .is_some_and(|b| b.position().is_finite() && b.linvel().is_finite());
+            if !finite {
+                return fail(
+                    FailureReason::PhysicsBlowUp,
+                    format!("a body's state became non-finite at t = {time_s:.3} s"),
+                );
+            }
+        }
+        if self.touch_phase.is_none() && self.robot_touches_bottle() {
+            self.touch_phase = Some(self.phase);
+        }
+        Ok(())
+    }
+
+    fn robot_touches_bottle(&self) -> bool {
+        self.cell
+            .items
+            .bottles()
+            .iter()
+            .any(|bottle| self.robot_touches(bottle.body))
+    }
+
+    fn robot_touches(&self, bottle: RigidBodyHandle) -> bool {
+        let physics = &self.cell.world.physics;
+        let Some(rb) = physics.bodies.get(bottle) else {
+            return false;
+        };
+        rb.colliders().iter().any(|&collider| {
+            physics
+                .narrow_phase
+                .contact_pairs_with(collider)
+                .any(|pair| {
+                    let other = if pair.collider1 == collider {
+                        pair.collider2
+                    } else {
+                        pair.collider1
+                    };
+                    // Touching, not merely within the solver's prediction distance.
+                    let touching = pair
+                        .manifolds()
+                        .iter()
+                        .any(|m| m.points.iter().any(|p| p.dist <= TOUCH_DISTANCE_M as f32));
+                    touching
+                        && physics
+                            .colliders
+                            .get(other)
+                            .is_some_and(|c| c.user_data == Tag::Robot.bits())
+                })
+        })
+    }
+
+    /// The bin the handled part rests in, if any.
+    pub(crate) fn bin_holding_part(&self) -> Option<String> {
+        let pose = self
+            .cell
+            .body_pose(self.cell.items.parts()[self.current].body)?;
+        let center = pose.translation.vector;
+        self.cell
+            .bins
+            .iter()
+            .find(|bin| bin.contains(&center))
+            .map(|bin| bin.name.clone())
+    }
+
+    /// The largest move of a bottle since the belt last stopped, m.
+    pub(crate) fn bottle_displacement_m(&self) -> f64 {
+        self.cell
+            .items
+            .bottles()
+            .iter()
+            .zip(&self.bottle_rest)
+            .filter_map(|(bottle, rest)| {
+                let (now, rest) = (self.cell.body_pose(bottle.body)?, (*rest)?);
+                Some((now.translation.vector - rest.translation.vector).norm())
+            })
+            .fold(0.0, f64::max)
+    }
+
+    /// Whether a bottle has been lifted since the belt last stopped.
+    pub(crate) fn bottle_lifted(&self) -> bool {
+        self.cell
+            .items
+            .bottles()
+            .iter()
+            .zip(&self.bottle_rest)
+            .any(|(bottle, rest)| {
+                let (Some(now), Some(rest)) = (self.cell.body_pose(bottle.body), rest) else {
+                    return false;
+                };
+                now.translation.z - rest.translation.z > 0.02
+            })
+    }
+}
