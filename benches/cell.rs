@@ -9,9 +9,9 @@ use criterion::{Criterion, criterion_group, criterion_main};
 use rapier3d::prelude::*;
 use twincell::batch::{Perception, TrialRunner, trial_seed};
 use twincell::cell::Cell;
-use twincell::task::CellTrialRunner;
 use twincell::rng::SimRng;
 use twincell::scenario::Scenario;
+use twincell::task::CellTrialRunner;
 
 fn scenario() -> Scenario {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/paper_50.toml");

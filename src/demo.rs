@@ -7,9 +7,7 @@ use nalgebra::{Isometry3, Translation3, UnitQuaternion};
 use serde::Serialize;
 
 use crate::control::TrajectoryFollower;
-use crate::kinematics::{
-    AnalyticIk, ArmModel, DOF, IkSolver, JointVector, gripper_tcp, tcp_pose,
-};
+use crate::kinematics::{AnalyticIk, ArmModel, DOF, IkSolver, JointVector, gripper_tcp, tcp_pose};
 use crate::planning::JointTrajectory;
 use crate::rng::SimRng;
 use crate::sim::{SimArm, SimError, World, WorldParams};

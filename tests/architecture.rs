@@ -158,7 +158,10 @@ fn lib_declares_the_modules_in_the_allowed_order() {
         .filter_map(|l| l.trim().strip_prefix("pub mod "))
         .map(|l| l.trim_end_matches(';'))
         .collect();
-    assert_eq!(declared, ORDER, "src/lib.rs declares its modules out of order");
+    assert_eq!(
+        declared, ORDER,
+        "src/lib.rs declares its modules out of order"
+    );
 }
 
 #[test]
@@ -166,7 +169,10 @@ fn the_checker_sees_imports_in_every_form() {
     let text = "use crate::sim::World;\nuse crate::{batch, render::{Scene, Shot}};\n// crate::task in a comment\nlet x = crate::detect::Detector::default_path();\nuse crate::{\n    planning::Percept,\n    control,\n};\n";
     let found = crate_paths(text);
     let names: Vec<&str> = found.iter().map(|(_, n)| n.as_str()).collect();
-    assert_eq!(names, ["sim", "batch", "render", "detect", "planning", "control"]);
+    assert_eq!(
+        names,
+        ["sim", "batch", "render", "detect", "planning", "control"]
+    );
     let lines: Vec<usize> = found.iter().map(|(l, _)| *l).collect();
     assert_eq!(lines, [1, 2, 2, 4, 6, 7]);
 }
@@ -182,5 +188,9 @@ fn no_source_file_is_longer_than_the_limit() {
             (lines > MAX_LINES).then(|| format!("{}: {lines} lines", file.display()))
         })
         .collect();
-    assert!(long.is_empty(), "over {MAX_LINES} lines:\n{}", long.join("\n"));
+    assert!(
+        long.is_empty(),
+        "over {MAX_LINES} lines:\n{}",
+        long.join("\n")
+    );
 }

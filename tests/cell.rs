@@ -71,7 +71,11 @@ fn belt_carries_the_part_to_the_photo_eye_by_friction() {
     let scenario = paper();
     let mut rng = SimRng::new(3);
     let mut cell = Cell::build(&scenario, None, &mut rng).expect("cell builds");
-    let start = cell.body_pose(cell.items.parts()[0].body).expect("part").translation.x;
+    let start = cell
+        .body_pose(cell.items.parts()[0].body)
+        .expect("part")
+        .translation
+        .x;
     cell.conveyor
         .set_speed_m_s(scenario.conveyor.speed_m_s as f32);
     let mut steps = 0;
@@ -80,7 +84,12 @@ fn belt_carries_the_part_to_the_photo_eye_by_friction() {
         steps += 1;
     }
     assert!(cell.photo_eye_blocked(), "nothing reached the photo-eye");
-    let travelled = cell.body_pose(cell.items.parts()[0].body).expect("part").translation.x - start;
+    let travelled = cell
+        .body_pose(cell.items.parts()[0].body)
+        .expect("part")
+        .translation
+        .x
+        - start;
     // Something broke the beam; the part has moved downstream at about belt speed.
     let elapsed = steps as f64 * scenario.physics.dt_s;
     assert!(
@@ -95,11 +104,19 @@ fn belt_carries_the_part_to_the_photo_eye_by_friction() {
         cell.world.step_with_hooks(&cell.conveyor);
     }
     assert_eq!(cell.conveyor.speed_m_s(), 0.0);
-    let at_rest = cell.body_pose(cell.items.parts()[0].body).expect("part").translation.x;
+    let at_rest = cell
+        .body_pose(cell.items.parts()[0].body)
+        .expect("part")
+        .translation
+        .x;
     for _ in 0..480 {
         cell.world.step_with_hooks(&cell.conveyor);
     }
-    let later = cell.body_pose(cell.items.parts()[0].body).expect("part").translation.x;
+    let later = cell
+        .body_pose(cell.items.parts()[0].body)
+        .expect("part")
+        .translation
+        .x;
     assert!(
         (later - at_rest).abs() < 0.0005,
         "part crept {} m on a stopped belt",

@@ -13,15 +13,15 @@ use std::process::Command;
 
 use common::twincell;
 use twincell::batch::{FailureReason, TrialRecord};
-use twincell::task::TrialObserverFactory;
 use twincell::cell::Cell;
-use twincell::task::{BoreView, CellView, DetectionView, PerceptionFrame};
 use twincell::perception::BoreDetector;
 use twincell::perception::calibration::MeasureOnPlane;
 use twincell::record::RerunRecorder;
 use twincell::render::{CameraRig, Renderer, RendererOptions, Shot};
 use twincell::rng::SimRng;
 use twincell::scenario::{Scenario, SensorSection};
+use twincell::task::TrialObserverFactory;
+use twincell::task::{BoreView, CellView, DetectionView, PerceptionFrame};
 
 fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))

@@ -13,6 +13,10 @@ mod report;
 mod report_tests;
 mod summary_table;
 
+pub use crate::outcome::{
+    CLEAR_CUT_BAND_MM, DecisionRecord, FailureReason, Outcome, PartRecord, Perception,
+    StreamPartRecord, StreamRecord, TrialRecord, TrialRunner, TrialTiming,
+};
 pub use batch_plan::{BatchPlan, Shard, ShardError, trial_seed};
 pub use batch_runner::{
     BatchSummary, JUNIT_FILE, REPORT_FILE, TRIALS_FILE, run_batch, write_reports,
@@ -22,11 +26,7 @@ pub use interrupt::cancel_on_signals;
 pub use junit::{junit_xml, testcase_name, xml_escape};
 pub use merge::{MergeError, MergeSummary, merge_shards};
 pub use report::{
-    AcceptConfusion, BandCounts, BatchReport, CycleTime, ErrorStats, Gate, Metrology, ReportMeta, Sorting,
-    StageTiming, StageTimings, StreamSummary, Timing, VerdictCounts, Z95, exit_code, passes_gate,
-    wilson_interval,
-};
-pub use crate::outcome::{
-    CLEAR_CUT_BAND_MM, DecisionRecord, FailureReason, Outcome, PartRecord, Perception,
-    StreamPartRecord, StreamRecord, TrialRecord, TrialRunner, TrialTiming,
+    AcceptConfusion, BandCounts, BatchReport, CycleTime, ErrorStats, Gate, Metrology, ReportMeta,
+    Sorting, StageTiming, StageTimings, StreamSummary, Timing, VerdictCounts, Z95, exit_code,
+    passes_gate, wilson_interval,
 };

@@ -268,7 +268,7 @@ pub struct BatchReport {
 }
 
 /// Nearest-rank percentile `q` in (0, 1] of ascending `sorted`; `None` when empty.
-fn percentile(sorted: &[f64], q: f64) -> Option<f64> {
+pub(super) fn percentile(sorted: &[f64], q: f64) -> Option<f64> {
     let n = sorted.len();
     if n == 0 {
         return None;

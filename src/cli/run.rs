@@ -8,10 +8,10 @@ use std::sync::atomic::AtomicBool;
 use anyhow::Result;
 use clap::Args;
 use twincell::batch::{BatchPlan, BatchSummary, Perception, Shard, cancel_on_signals, run_batch};
-use twincell::task::CellTrialRunner;
 #[cfg(feature = "record")]
 use twincell::record::{DEFAULT_VIEWER_ADDR, RerunRecorder};
 use twincell::scenario::Scenario;
+use twincell::task::CellTrialRunner;
 
 use super::BadInput;
 

@@ -68,11 +68,7 @@ pub trait MeasureOnPlane {
 }
 
 impl MeasureOnPlane for CameraCalibration {
-    fn measure_on_plane(
-        &self,
-        bore: &Bore,
-        max_upr: usize,
-    ) -> Result<PlaneBore, PerceptionError> {
+    fn measure_on_plane(&self, bore: &Bore, max_upr: usize) -> Result<PlaneBore, PerceptionError> {
         let on_plane = |points: &[[f64; 2]]| -> Result<Vec<[f64; 2]>, PerceptionError> {
             points
                 .iter()

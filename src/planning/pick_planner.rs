@@ -81,7 +81,10 @@ pub struct PickPlanner {
 }
 
 /// The cell's scenery as the planner's obstacles, in the arm's base frame.
-pub fn scenery_obstacles(scenery: &[SceneryBox], base_from_world: &Isometry3<f64>) -> Vec<Obstacle> {
+pub fn scenery_obstacles(
+    scenery: &[SceneryBox],
+    base_from_world: &Isometry3<f64>,
+) -> Vec<Obstacle> {
     scenery
         .iter()
         .map(|b| Obstacle {
@@ -350,7 +353,8 @@ pub fn bin_slot(bin: &BinBody, placed_before: usize) -> Vector3<f64> {
     let (nx, ny) = (per_side(bin.size[0]), per_side(bin.size[1]));
     let mut slots: Vec<Vector3<f64>> = (0..nx * ny)
         .map(|k| {
-            let offset = |i: usize, n: usize| (i as f64 - (n as f64 - 1.0) / 2.0) * BIN_SLOT_PITCH_M;
+            let offset =
+                |i: usize, n: usize| (i as f64 - (n as f64 - 1.0) / 2.0) * BIN_SLOT_PITCH_M;
             Vector3::new(offset(k % nx, nx), offset(k / nx, ny), 0.0)
         })
         .collect();

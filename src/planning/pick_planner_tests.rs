@@ -24,7 +24,12 @@ const HOME: [f64; 6] = [
 fn robot_shapes() -> Vec<RobotShape> {
     let pad = SharedShape::cuboid(0.006, 0.015, 0.03);
     let finger = |sign: f64| RobotShape {
-        link: if sign > 0.0 { "finger_left_Link" } else { "finger_right_Link" }.into(),
+        link: if sign > 0.0 {
+            "finger_left_Link"
+        } else {
+            "finger_right_Link"
+        }
+        .into(),
         mount: LinkMount::Finger { sign },
         mount_from_shape: Isometry3::translation(sign * 0.045, 0.0, 0.11),
         shape: pad.clone(),
@@ -111,8 +116,14 @@ fn a_free_part_is_picked_upright_straight_down() {
         panic!("empty descent");
     };
     let at = tcp_xyz(&planner, &q_at);
-    assert!((at.x - 0.05).abs() < 1e-3 && (at.y + 0.45).abs() < 1e-3, "{at:?}");
-    assert!((at.z - (BELT_TOP_Z + GRASP_TCP_ABOVE_BOTTOM_M)).abs() < 1e-3, "{at:?}");
+    assert!(
+        (at.x - 0.05).abs() < 1e-3 && (at.y + 0.45).abs() < 1e-3,
+        "{at:?}"
+    );
+    assert!(
+        (at.z - (BELT_TOP_Z + GRASP_TCP_ABOVE_BOTTOM_M)).abs() < 1e-3,
+        "{at:?}"
+    );
     // Straight down: every sample of the descent stays over the part's axis.
     let steps = 40;
     for k in 0..=steps {
@@ -121,7 +132,10 @@ fn a_free_part_is_picked_upright_straight_down() {
             panic!("no sample");
         };
         let p = tcp_xyz(&planner, &sample.q);
-        assert!((p.x - 0.05).hypot(p.y + 0.45) < 2e-3, "off axis at {t} s: {p:?}");
+        assert!(
+            (p.x - 0.05).hypot(p.y + 0.45) < 2e-3,
+            "off axis at {t} s: {p:?}"
+        );
     }
     // Upright: the tool axis points down.
     let world_from_tcp = planner.world_from_base * tcp_pose(&planner.model, &q_at);
@@ -155,7 +169,10 @@ fn the_jaws_close_across_the_line_to_the_nearest_obstacle() {
         let yaw = jaw_yaw(&planner, &q_at);
         let diff = (yaw - expected).abs();
         let diff = diff.min(std::f64::consts::PI - diff);
-        assert!(diff < 1e-3, "bottle at {angle_deg} deg: jaws at {yaw} rad, want {expected}");
+        assert!(
+            diff < 1e-3,
+            "bottle at {angle_deg} deg: jaws at {yaw} rad, want {expected}"
+        );
     }
 }
 
@@ -163,7 +180,10 @@ fn the_jaws_close_across_the_line_to_the_nearest_obstacle() {
 fn a_tall_obstacle_raises_the_approach_and_the_lift() {
     let planner = planner();
     let near = Isometry3::translation(0.05 + 0.12, -0.45, BELT_TOP_Z);
-    let with_bottle = percept([0.05, -0.45], vec![bottle_obstacle(&bottle(), &near, false, 0.0)]);
+    let with_bottle = percept(
+        [0.05, -0.45],
+        vec![bottle_obstacle(&bottle(), &near, false, 0.0)],
+    );
     let free = percept([0.05, -0.45], Vec::new());
     let plan = |p: &Percept| {
         let Ok(plan) = planner.plan_pick(p, &planner.checker_for(p), &HOME) else {
@@ -177,7 +197,11 @@ fn a_tall_obstacle_raises_the_approach_and_the_lift() {
         panic!("empty approach");
     };
     // Fingertips hang 15 mm below the TCP; they pass 30 mm over the 200 mm bottle.
-    assert!(top(&a_above) >= BELT_TOP_Z + 0.2 + 0.045 - 1e-6, "{}", top(&a_above));
+    assert!(
+        top(&a_above) >= BELT_TOP_Z + 0.2 + 0.045 - 1e-6,
+        "{}",
+        top(&a_above)
+    );
     assert!(top(&a_above) > top(&b_above));
     assert!(top(&a.lift_end) > top(&b.lift_end));
 }
@@ -196,7 +220,12 @@ fn an_obstacle_on_the_part_itself_is_a_collision_and_a_far_part_unreachable() {
     let Err(failure) = planner.plan_pick(&blocked, &planner.checker_for(&blocked), &HOME) else {
         panic!("a pick through a plate over the part was planned");
     };
-    assert_eq!(failure.reason, FailureReason::Collision, "{}", failure.detail);
+    assert_eq!(
+        failure.reason,
+        FailureReason::Collision,
+        "{}",
+        failure.detail
+    );
     let far = percept([2.5, -0.45], Vec::new());
     let Err(failure) = planner.plan_pick(&far, &planner.checker_for(&far), &HOME) else {
         panic!("a part 2.5 m away was planned");
@@ -226,13 +255,21 @@ fn bin_slots_fill_from_the_centre_without_repeats() {
     for (i, a) in slots.iter().enumerate().take(3) {
         assert!(slots[i + 1..4].iter().all(|b| (a - b).norm() > 0.05));
     }
-    // A wider bin has a centre cell, taken after the first part.
+    // A wider bin is a 3 x 3 grid: the first part at the centre, then the four cells beside
+    // it, then the corners.
     let wide = BinBody {
         size: [0.30, 0.30],
         ..bin
     };
-    assert!(bin_slot(&wide, 1).norm() < 1e-12);
-    assert!((bin_slot(&wide, 2).norm() - 0.09).abs() < 1e-12);
+    for k in 1..5 {
+        assert!((bin_slot(&wide, k).norm() - 0.09).abs() < 1e-12, "{k}");
+    }
+    for k in 5..9 {
+        assert!(
+            (bin_slot(&wide, k).norm() - 0.09 * 2f64.sqrt()).abs() < 1e-12,
+            "{k}"
+        );
+    }
 }
 
 #[test]
@@ -254,7 +291,10 @@ fn a_place_goes_into_the_slot_and_retreats_home() {
         };
         let at = tcp_xyz(&planner, &q_low);
         let slot = bin.floor_center + bin_slot(&bin, placed_before);
-        assert!((at.x - slot.x).hypot(at.y - slot.y) < 1e-3, "{at:?} vs {slot:?}");
+        assert!(
+            (at.x - slot.x).hypot(at.y - slot.y) < 1e-3,
+            "{at:?} vs {slot:?}"
+        );
         let Some(home) = place.retreat.end() else {
             panic!("empty retreat");
         };

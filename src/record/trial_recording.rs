@@ -12,11 +12,11 @@ use rerun::{
 use super::convert::{mesh_3d, transform};
 use super::{METROLOGY, OUTCOMES, PART_TIMELINE, SIM_TIME, TRIAL_TIMELINE, trial_root};
 use crate::outcome::{DecisionRecord, Outcome, PartRecord, TrialRecord};
-use crate::task::{CellView, PerceptionFrame, TrialObserver};
 use crate::render::mesh::Mesh;
 use crate::render::{CameraRig, ObjectKind, Scene};
 use crate::scenario::Scenario;
 use crate::sim::ARM_JOINTS;
+use crate::task::{CellView, PerceptionFrame, TrialObserver};
 
 /// Segments of a fitted circle drawn over the image.
 const CIRCLE_SEGMENTS: usize = 96;

@@ -16,12 +16,16 @@
 mod cull;
 pub mod dataset;
 pub mod error;
+mod exposure;
+mod gpu_scene;
 pub mod material;
 pub mod mesh;
+mod pipeline;
 pub mod renderer;
 pub mod scene;
 pub mod sensor;
 pub mod shot;
+mod targets;
 pub mod window;
 
 pub use error::RenderError;

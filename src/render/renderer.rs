@@ -4,158 +4,24 @@
 use std::collections::BTreeMap;
 use std::ops::Range;
 
-use bytemuck::{Pod, Zeroable};
+use bytemuck::Zeroable;
 use image::{ImageBuffer, Luma, RgbImage};
-use nalgebra::{Isometry3, Matrix4, Point3, Vector3};
+use nalgebra::Isometry3;
 use wgpu::util::DeviceExt;
 
 use super::cull::{Bounds, View};
 use super::error::RenderError;
-use super::mesh::MeshVertex;
+pub use super::exposure::{
+    Exposure, Light, MAX_LIGHTS, MAX_STAIN_BLOBS, RendererOptions, StainBlob,
+};
+pub use super::gpu_scene::GpuScene;
+use super::gpu_scene::ObjectRange;
+use super::pipeline::{
+    COLOUR_FORMAT, DEPTH_FORMAT, FAR_M, Globals, GpuVertex, ID_FORMAT, NEAR_M, OBJECT_STRIDE,
+    ObjectUniform, build_pipeline, clip_from_camera, gpu_vertex,
+};
 use super::scene::{ObjectKind, Scene, SceneObject};
-use crate::camera::CameraCalibration;
-
-/// Nearest depth drawn, m.
-const NEAR_M: f64 = 0.02;
-/// Farthest depth drawn, m.
-const FAR_M: f64 = 20.0;
-/// Most lights a frame may use.
-pub const MAX_LIGHTS: usize = 4;
-/// Most stain blobs a frame may use.
-pub const MAX_STAIN_BLOBS: usize = 32;
-/// Per-object uniforms are bound at multiples of this offset.
-const OBJECT_STRIDE: u64 = 256;
-const COLOUR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
-const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
-const ID_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Uint;
-/// Render-target sizes a renderer keeps before it drops them all and starts again.
-const MAX_TARGET_SIZES: usize = 12;
-
-/// A directional light.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Light {
-    /// Direction the light travels, world frame, unit length.
-    pub direction_in_world: Vector3<f64>,
-    /// Intensity (1 lights a white surface facing it fully).
-    pub intensity: f64,
-}
-
-/// A soft dark blob on a stainable surface: one lobe of an oil stain or a speck of dirt.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct StainBlob {
-    /// Centre, world frame (on the surface).
-    pub centre_in_world: Point3<f64>,
-    /// Radius, m.
-    pub radius_m: f64,
-    /// Share of light the stain lets through at its core.
-    pub transmission: f64,
-    /// Share of the radius over which the stain fades out.
-    pub soft_edge: f64,
-}
-
-/// Everything about one exposure besides the scene: the camera and the light on the scene.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Exposure {
-    /// The camera as it really stands (calibration plus any pose jitter).
-    pub camera: CameraCalibration,
-    /// Image width, pixels.
-    pub width_px: u32,
-    /// Image height, pixels.
-    pub height_px: u32,
-    /// Ambient light, a share of full light.
-    pub ambient: f64,
-    /// Directional lights (at most [`MAX_LIGHTS`]).
-    pub lights: Vec<Light>,
-    /// Stains and dirt (at most [`MAX_STAIN_BLOBS`]).
-    pub stains: Vec<StainBlob>,
-}
-
-/// Options fixed for a renderer's life.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct RendererOptions {
-    /// MSAA samples per pixel: 1 or 4.
-    pub msaa_samples: u32,
-    /// Supersampling per axis (1 to 4) on top of MSAA.
-    pub supersample: u32,
-}
-
-impl Default for RendererOptions {
-    fn default() -> Self {
-        Self {
-            msaa_samples: 4,
-            supersample: 1,
-        }
-    }
-}
-
-#[repr(C)]
-#[derive(Debug, Clone, Copy, Pod, Zeroable)]
-struct GpuVertex {
-    position: [f32; 3],
-    normal: [f32; 3],
-    albedo: [f32; 3],
-    surface: [f32; 3],
-}
-
-#[repr(C)]
-#[derive(Debug, Clone, Copy, Pod, Zeroable)]
-struct Globals {
-    clip_from_camera: [f32; 16],
-    ambient: [f32; 4],
-    light_dir: [[f32; 4]; MAX_LIGHTS],
-    light_rgb: [[f32; 4]; MAX_LIGHTS],
-    stain_centre: [[f32; 4]; MAX_STAIN_BLOBS],
-    stain_params: [[f32; 4]; MAX_STAIN_BLOBS],
-    counts: [u32; 4],
-}
-
-#[repr(C)]
-#[derive(Debug, Clone, Copy, Pod, Zeroable)]
-struct ObjectUniform {
-    camera_from_object: [f32; 16],
-    id: [u32; 4],
-    padding: [u32; 44],
-}
-
-/// A scene's meshes on the device: one vertex buffer, one draw range per object.
-pub struct GpuScene {
-    vertices: wgpu::Buffer,
-    /// Each object's vertices: its plain triangles from `start` to `stained`, then its
-    /// stainable ones up to `end`.
-    ranges: Vec<ObjectRange>,
-    /// Object indices, nearest kinds first, so early depth tests skip hidden fragments.
-    draw_order: Vec<usize>,
-    poses: Vec<Isometry3<f64>>,
-    /// Each object's extent, for culling.
-    bounds: Vec<Bounds>,
-}
-
-/// Where an object's vertices lie in a [`GpuScene`]'s buffer.
-#[derive(Debug, Clone, Copy)]
-struct ObjectRange {
-    start: u32,
-    stained: u32,
-    end: u32,
-}
-
-impl GpuScene {
-    /// Number of objects.
-    pub fn len(&self) -> usize {
-        self.ranges.len()
-    }
-
-    /// Whether the scene has no objects.
-    pub fn is_empty(&self) -> bool {
-        self.ranges.is_empty()
-    }
-
-    /// Updates object `index`'s pose (as the physics moves it) without re-uploading meshes.
-    pub fn set_pose(&mut self, index: usize, world_from_object: Isometry3<f64>) {
-        if let Some(pose) = self.poses.get_mut(index) {
-            *pose = world_from_object;
-        }
-    }
-}
+use super::targets::{MAX_TARGET_SIZES, Targets};
 
 /// The shading pipelines for one light count.
 struct Shaded {
@@ -163,17 +29,6 @@ struct Shaded {
     plain: wgpu::RenderPipeline,
     /// Stainable surfaces.
     stained: wgpu::RenderPipeline,
-}
-
-struct Targets {
-    width: u32,
-    height: u32,
-    colour_msaa: Option<wgpu::TextureView>,
-    colour: wgpu::Texture,
-    colour_view: wgpu::TextureView,
-    depth: wgpu::TextureView,
-    readback: wgpu::Buffer,
-    padded_row: u32,
 }
 
 /// The offscreen renderer.
@@ -587,66 +442,8 @@ impl Renderer {
         if self.targets.len() >= MAX_TARGET_SIZES {
             self.targets.clear();
         }
-        let limit = self.device.limits().max_texture_dimension_2d;
-        if w > limit || h > limit {
-            return Err(RenderError::Unsupported {
-                adapter: self.info.name.clone(),
-                reason: format!("a {w} x {h} target (largest side {limit})"),
-            });
-        }
-        let size = wgpu::Extent3d {
-            width: w,
-            height: h,
-            depth_or_array_layers: 1,
-        };
-        let texture = |label: &str, format: wgpu::TextureFormat, samples: u32, usage| {
-            self.device.create_texture(&wgpu::TextureDescriptor {
-                label: Some(label),
-                size,
-                mip_level_count: 1,
-                sample_count: samples,
-                dimension: wgpu::TextureDimension::D2,
-                format,
-                usage,
-                view_formats: &[],
-            })
-        };
-        let format = if ids { ID_FORMAT } else { COLOUR_FORMAT };
-        let attachment = wgpu::TextureUsages::RENDER_ATTACHMENT;
-        let colour = texture(
-            "colour",
-            format,
-            1,
-            attachment | wgpu::TextureUsages::COPY_SRC,
-        );
-        let colour_msaa = (samples > 1).then(|| {
-            texture("colour msaa", format, samples, attachment)
-                .create_view(&wgpu::TextureViewDescriptor::default())
-        });
-        let depth = texture("depth", DEPTH_FORMAT, samples, attachment)
-            .create_view(&wgpu::TextureViewDescriptor::default());
-        let padded_row = (w * 4).div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT)
-            * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
-        let readback = self.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("readback"),
-            size: u64::from(padded_row) * u64::from(h),
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let colour_view = colour.create_view(&wgpu::TextureViewDescriptor::default());
-        self.targets.insert(
-            (w, h, ids),
-            Targets {
-                width: w,
-                height: h,
-                colour_msaa,
-                colour,
-                colour_view,
-                depth,
-                readback,
-                padded_row,
-            },
-        );
+        let targets = Targets::new(&self.device, &self.info.name, w, h, ids, samples)?;
+        self.targets.insert((w, h, ids), targets);
         Ok(())
     }
 
@@ -783,99 +580,4 @@ enum Pipelines<'a> {
     Shaded(&'a Shaded),
     /// Object ids.
     Ids(&'a wgpu::RenderPipeline),
-}
-
-/// The clip-space projection that puts a camera-frame point where `camera.project` puts it:
-/// pixel centres at integers map to framebuffer coordinates `u + 0.5`.
-fn clip_from_camera(camera: &CameraCalibration, width_px: u32, height_px: u32) -> [f32; 16] {
-    let (w, h) = (f64::from(width_px), f64::from(height_px));
-    let depth_scale = FAR_M / (FAR_M - NEAR_M);
-    #[rustfmt::skip]
-    let m = Matrix4::new(
-        2.0 * camera.fx_px / w, 0.0, 2.0 * (camera.cx_px + 0.5) / w - 1.0, 0.0,
-        0.0, -2.0 * camera.fy_px / h, 1.0 - 2.0 * (camera.cy_px + 0.5) / h, 0.0,
-        0.0, 0.0, depth_scale, -depth_scale * NEAR_M,
-        0.0, 0.0, 1.0, 0.0,
-    );
-    let mut out = [0.0f32; 16];
-    out.copy_from_slice(m.cast::<f32>().as_slice());
-    out
-}
-
-/// A render pipeline of the camera shader: fragment entry `entry` into `format` at `samples`
-/// samples, the shader's light loop fixed at `light_count`. Back faces are culled: every mesh
-/// is closed with outward, counter-clockwise faces, so a back face is always hidden.
-fn build_pipeline(
-    device: &wgpu::Device,
-    module: &wgpu::ShaderModule,
-    layout: &wgpu::PipelineLayout,
-    entry: &str,
-    format: wgpu::TextureFormat,
-    samples: u32,
-    light_count: usize,
-) -> wgpu::RenderPipeline {
-    let attributes =
-        wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x3, 3 => Float32x3];
-    let constants = [("LIGHT_COUNT", light_count as f64)];
-    device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-        label: Some(entry),
-        layout: Some(layout),
-        vertex: wgpu::VertexState {
-            module,
-            entry_point: Some("vs_main"),
-            compilation_options: wgpu::PipelineCompilationOptions::default(),
-            buffers: &[Some(wgpu::VertexBufferLayout {
-                array_stride: std::mem::size_of::<GpuVertex>() as u64,
-                step_mode: wgpu::VertexStepMode::Vertex,
-                attributes: &attributes,
-            })],
-        },
-        primitive: wgpu::PrimitiveState {
-            topology: wgpu::PrimitiveTopology::TriangleList,
-            front_face: wgpu::FrontFace::Ccw,
-            cull_mode: Some(wgpu::Face::Back),
-            ..wgpu::PrimitiveState::default()
-        },
-        depth_stencil: Some(wgpu::DepthStencilState {
-            format: DEPTH_FORMAT,
-            depth_write_enabled: Some(true),
-            depth_compare: Some(wgpu::CompareFunction::Less),
-            stencil: wgpu::StencilState::default(),
-            bias: wgpu::DepthBiasState::default(),
-        }),
-        multisample: wgpu::MultisampleState {
-            count: samples,
-            mask: !0,
-            alpha_to_coverage_enabled: false,
-        },
-        fragment: Some(wgpu::FragmentState {
-            module,
-            entry_point: Some(entry),
-            compilation_options: wgpu::PipelineCompilationOptions {
-                constants: &constants,
-                ..wgpu::PipelineCompilationOptions::default()
-            },
-            targets: &[Some(wgpu::ColorTargetState {
-                format,
-                blend: None,
-                write_mask: wgpu::ColorWrites::ALL,
-            })],
-        }),
-        multiview_mask: None,
-        cache: None,
-    })
-}
-
-fn gpu_vertex(v: &MeshVertex) -> GpuVertex {
-    let m = v.material;
-    GpuVertex {
-        position: [
-            v.position.x as f32,
-            v.position.y as f32,
-            v.position.z as f32,
-        ],
-        normal: [v.normal.x as f32, v.normal.y as f32, v.normal.z as f32],
-        albedo: m.albedo,
-        surface: [m.specular, m.shininess, m.sheen],
-    }
 }

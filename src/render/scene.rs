@@ -12,9 +12,9 @@ use rapier3d::prelude::{Collider, RigidBodyHandle};
 use super::material::Material;
 use super::mesh::{Mesh, ROUND_SEGMENTS};
 use crate::cell::Cell;
-use crate::sim::{PartInstance, Tag};
 use crate::math::{pose_from_physics, vector_from_physics};
 use crate::scenario::Scenario;
+use crate::sim::{PartInstance, Tag};
 
 /// What an object is, for ground truth and dataset labels.
 #[derive(Debug, Clone, PartialEq)]
@@ -70,10 +70,7 @@ impl Scene {
             };
             let world_from_body = pose_from_physics(rb.position());
             let tag = collider.user_data;
-            if tag == Tag::Part.bits()
-                || tag == Tag::Bottle.bits()
-                || tag == Tag::PhotoEye.bits()
-            {
+            if tag == Tag::Part.bits() || tag == Tag::Bottle.bits() || tag == Tag::PhotoEye.bits() {
                 // Drawn once per body below (the photo-eye's beam is invisible).
                 continue;
             }

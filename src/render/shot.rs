@@ -12,8 +12,8 @@ use super::error::RenderError;
 use super::renderer::{Exposure, GpuScene, Light, MAX_STAIN_BLOBS, Renderer, StainBlob};
 use super::scene::{ObjectKind, Scene, SceneObject};
 use super::sensor::SensorDraw;
-use crate::cell::{Cell, CellError};
 use crate::camera::CameraCalibration;
+use crate::cell::{Cell, CellError};
 use crate::rng::SimRng;
 use crate::scenario::{Scenario, SensorSection};
 

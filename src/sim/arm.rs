@@ -332,34 +332,34 @@ impl SimArm {
     /// Tags every robot collider as [`Tag::Robot`]; finger pads get `pad_friction`, the rest of
     /// the robot a moderate one.
     pub fn dress_colliders(&self, world: &mut World, pad_friction: f64) {
-    let physics = &mut world.physics;
-    for (name, body) in self.link_bodies() {
-        let friction = if name.starts_with("finger") {
-            pad_friction
-        } else {
-            0.5
-        };
-        let Some(rb) = physics.bodies.get(*body) else {
-            continue;
-        };
-        let handles: Vec<ColliderHandle> = rb.colliders().to_vec();
-        for handle in handles {
-            if let Some(collider) = physics.colliders.get_mut(handle) {
-                collider.set_friction(friction as f32);
-                if name.starts_with("finger") {
-                    // Rubber pads grip with their own coefficient, whatever they touch.
-                    collider.set_friction_combine_rule(CoefficientCombineRule::Max);
-                    // Contacts of a hooked collider are never recycled: rapier otherwise keeps
-                    // a pair's contacts, normal and lever arms frozen in world space while the
-                    // pair's relative pose barely changes, which is exactly a held part. As
-                    // the arm turned the gripper (up to 11 deg before a refresh) the pads'
-                    // squeeze then pushed along stale normals, twisted the part and walked it
-                    // out of the jaws. Pad contacts are rebuilt every step instead.
-                    collider.set_active_hooks(ActiveHooks::MODIFY_SOLVER_CONTACTS);
+        let physics = &mut world.physics;
+        for (name, body) in self.link_bodies() {
+            let friction = if name.starts_with("finger") {
+                pad_friction
+            } else {
+                0.5
+            };
+            let Some(rb) = physics.bodies.get(*body) else {
+                continue;
+            };
+            let handles: Vec<ColliderHandle> = rb.colliders().to_vec();
+            for handle in handles {
+                if let Some(collider) = physics.colliders.get_mut(handle) {
+                    collider.set_friction(friction as f32);
+                    if name.starts_with("finger") {
+                        // Rubber pads grip with their own coefficient, whatever they touch.
+                        collider.set_friction_combine_rule(CoefficientCombineRule::Max);
+                        // Contacts of a hooked collider are never recycled: rapier otherwise keeps
+                        // a pair's contacts, normal and lever arms frozen in world space while the
+                        // pair's relative pose barely changes, which is exactly a held part. As
+                        // the arm turned the gripper (up to 11 deg before a refresh) the pads'
+                        // squeeze then pushed along stale normals, twisted the part and walked it
+                        // out of the jaws. Pad contacts are rebuilt every step instead.
+                        collider.set_active_hooks(ActiveHooks::MODIFY_SOLVER_CONTACTS);
+                    }
+                    collider.user_data = Tag::Robot as u128;
                 }
-                collider.user_data = Tag::Robot as u128;
             }
         }
     }
-}
 }

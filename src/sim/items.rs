@@ -262,4 +262,3 @@ fn insert_bottle_at(
     }
     body
 }
-

@@ -63,8 +63,7 @@ impl CycleEvidence<'_> {
     /// Whether the bottles count as disturbed: touched by the robot, or moved beyond the
     /// scenario's tolerance.
     pub fn bottle_disturbed(&self, scenario: &Scenario) -> bool {
-        self.touch_phase.is_some()
-            || self.bottle_displacement_m > scenario.task.bottle_tolerance_m
+        self.touch_phase.is_some() || self.bottle_displacement_m > scenario.task.bottle_tolerance_m
     }
 }
 
@@ -113,7 +112,7 @@ mod tests {
     use super::*;
     use crate::sim::BoreForm;
 
-    fn scenario(uncertainty_mm: f64) -> Scenario {
+    fn paper(uncertainty_mm: f64) -> Scenario {
         let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/paper_50.toml");
         let Ok(mut scenario) = Scenario::load(&path) else {
             panic!("paper_50.toml does not load");
@@ -149,7 +148,7 @@ mod tests {
 
     #[test]
     fn the_truth_names_the_accept_or_reject_bin() {
-        let scenario = scenario(0.05);
+        let scenario = paper(0.05);
         let good = part_record(&scenario, &part("axle_b28", 0.2));
         assert!(good.truly_acceptable && good.clear_cut);
         assert_eq!(good.correct_bin, "group_b");
@@ -161,7 +160,7 @@ mod tests {
 
     #[test]
     fn a_clear_cut_part_must_reach_its_own_bin() {
-        let scenario = scenario(0.05);
+        let scenario = paper(0.05);
         let good = part_record(&scenario, &part("axle_a20", 0.3));
         assert!(bin_is_right(&scenario, &good, Some("group_a")));
         assert!(!bin_is_right(&scenario, &good, Some("reject")));
@@ -181,7 +180,7 @@ mod tests {
 
     #[test]
     fn inside_the_uncertainty_band_either_verdict_is_right() {
-        let scenario = scenario(0.05);
+        let scenario = paper(0.05);
         // 0.47 and 0.53 mm lie within 0.05 mm of the 0.5 mm tolerance.
         for roundness_mm in [0.47, 0.53] {
             let record = part_record(&scenario, &part("axle_b32", roundness_mm));
@@ -192,7 +191,7 @@ mod tests {
             assert!(!bin_is_right(&scenario, &record, Some("group_a")));
         }
         // The band is the scenario's: with a narrower one the same part is clear-cut.
-        let narrow = scenario(0.02);
+        let narrow = paper(0.02);
         let record = part_record(&narrow, &part("axle_b32", 0.47));
         assert!(record.clear_cut && record.truly_acceptable);
         assert!(!bin_is_right(&narrow, &record, Some("reject")));
@@ -200,7 +199,7 @@ mod tests {
 
     #[test]
     fn bottles_are_judged_before_the_bin() {
-        let scenario = scenario(0.05);
+        let scenario = paper(0.05);
         let record = part_record(&scenario, &part("axle_a24", 0.1));
         let lifted = CycleEvidence {
             bottle_lifted: true,
@@ -219,7 +218,11 @@ mod tests {
             panic!("a touched bottle passed");
         };
         assert_eq!(failure.reason, FailureReason::DistractorTouched);
-        assert!(failure.detail.contains("during descend"), "{}", failure.detail);
+        assert!(
+            failure.detail.contains("during descend"),
+            "{}",
+            failure.detail
+        );
         // Pushed past the tolerance without a recorded touch (by the part, say).
         let pushed = CycleEvidence {
             bottle_displacement_m: scenario.task.bottle_tolerance_m + 0.001,
@@ -240,7 +243,7 @@ mod tests {
 
     #[test]
     fn the_controllers_own_failure_comes_first() {
-        let scenario = scenario(0.05);
+        let scenario = paper(0.05);
         let record = part_record(&scenario, &part("axle_a24", 0.1));
         let slipped = Failure::new(FailureReason::Slipped, "part slid");
         let lifted = CycleEvidence {

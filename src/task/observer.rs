@@ -18,7 +18,6 @@ use crate::sim::{FINGER_LINKS, PartItem, Tag};
 /// How often a running trial is sampled, per second of simulated time.
 pub const SAMPLE_RATE_HZ: f64 = 30.0;
 
-
 /// Watches trials. Every hook is called on the thread that runs the trial.
 pub trait TrialObserver {
     /// Trial `trial_index` of `scenario` starts; `view` shows the cell as built.

@@ -216,7 +216,10 @@ impl Trial<'_> {
         let checker = self.planner.checker_for(percept);
         let pick = self.planner.plan_pick(percept, &checker, &self.q)?;
         let Some(bin) = self.cell.bins.iter().find(|b| b.name == state.bin) else {
-            return fail(FailureReason::WrongBin, format!("no bin named {}", state.bin));
+            return fail(
+                FailureReason::WrongBin,
+                format!("no bin named {}", state.bin),
+            );
         };
         let placed_before = self.bin_fill.get(&bin.name).copied().unwrap_or(0);
         let place =

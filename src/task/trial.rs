@@ -143,7 +143,8 @@ impl<'a> Trial<'a> {
     pub(crate) fn wait_for_part(&mut self) -> Result<(), Failure> {
         self.phase = Phase::Wait;
         self.belt.run_at(self.scenario.conveyor.speed_m_s);
-        let deadline = PhaseDeadline::start(Phase::Wait, self.cell.world.time_s(), &self.scenario.task);
+        let deadline =
+            PhaseDeadline::start(Phase::Wait, self.cell.world.time_s(), &self.scenario.task);
         // Hold the arm at home while waiting.
         self.hold();
         while !self.cell.photo_eye_blocked() {
@@ -175,7 +176,8 @@ impl<'a> Trial<'a> {
     pub(crate) fn let_pass(&mut self) -> Result<(), Failure> {
         self.phase = Phase::Pass;
         self.belt.run_at(self.scenario.conveyor.speed_m_s);
-        let deadline = PhaseDeadline::start(Phase::Pass, self.cell.world.time_s(), &self.scenario.task);
+        let deadline =
+            PhaseDeadline::start(Phase::Pass, self.cell.world.time_s(), &self.scenario.task);
         while self.cell.photo_eye_blocked() {
             if let Some(deadline) = &deadline {
                 deadline.check(self.cell.world.time_s())?;
@@ -255,8 +257,12 @@ impl<'a> Trial<'a> {
     fn step_physics(&mut self) -> Result<(), Failure> {
         let dt = self.cell.world.params().dt_s;
         let travel_m = self.belt.advance(&self.cell.conveyor, dt);
-        self.feeder
-            .advance(travel_m, self.scenario, &mut self.cell, &mut self.bottle_rest);
+        self.feeder.advance(
+            travel_m,
+            self.scenario,
+            &mut self.cell,
+            &mut self.bottle_rest,
+        );
         self.gripper
             .advance(&mut self.cell.world, &self.cell.arm, dt);
         let started = Instant::now();
