@@ -120,6 +120,7 @@ fn bores_measured_in_their_areas_of_interest_locate_size_and_grade_the_part() {
         BoreDetector::new(BoreDetectorParams::default().at_scale(f64::from(roi_scale)));
     let (mut worst_centre_mm, mut worst_diameter_mm, mut worst_roundness_mm) =
         (0.0f64, 0.0f64, 0.0f64);
+    let mut roundness_errors_mm = Vec::new();
     for index in 0..30 {
         let shot = match Shot::pick_station(&scenario, None, &rig, &scenario.sensor, index) {
             Ok(s) => s,
@@ -148,6 +149,7 @@ fn bores_measured_in_their_areas_of_interest_locate_size_and_grade_the_part() {
             let [x, y, _] = truth.position_m;
             let centre_mm = (plane.centre_in_world.x - x).hypot(plane.centre_in_world.y - y) * 1e3;
             let diameter_mm = (plane.diameter_m * 1e3 - 2.0 * bore.radius_mm).abs();
+            roundness_errors_mm.push(plane.roundness_m * 1e3 - bore.roundness_mm);
             let roundness_mm = (plane.roundness_m * 1e3 - bore.roundness_mm).abs();
             assert!(
                 centre_mm < 1.0 && diameter_mm < 0.1 && roundness_mm < 0.05,
@@ -162,6 +164,21 @@ fn bores_measured_in_their_areas_of_interest_locate_size_and_grade_the_part() {
     eprintln!(
         "worst centre {worst_centre_mm:.3} mm, diameter {worst_diameter_mm:.3} mm, roundness \
          {worst_roundness_mm:.3} mm"
+    );
+    // The roundness's standard uncertainty: the RMS of the signed errors (bias included); the
+    // scenarios' uncertainty band is its expanded uncertainty, k = 2, rounded up to 0.01 mm.
+    let n = roundness_errors_mm.len() as f64;
+    let rms_mm = (roundness_errors_mm.iter().map(|e| e * e).sum::<f64>() / n).sqrt();
+    let expanded_mm = 2.0 * rms_mm;
+    let band_mm = scenario.roundness_uncertainty_mm;
+    eprintln!(
+        "roundness over {n} bores: standard uncertainty {rms_mm:.4} mm, expanded (k = 2) \
+         {expanded_mm:.4} mm; the scenario's band {band_mm} mm"
+    );
+    assert!(
+        expanded_mm <= band_mm && band_mm <= expanded_mm + 0.01,
+        "paper_50's roundness_uncertainty_mm ({band_mm}) is not the measured expanded \
+         uncertainty {expanded_mm:.4} mm rounded up to 0.01 mm"
     );
 }
 
@@ -192,5 +209,42 @@ fn camera_mode_sorts_the_smoke_scenario() {
     assert_eq!(report["sorting"]["clear_cut_misjudged"], 0);
     let roundness = report["metrology"]["roundness_error_mm"]["mean_mm"].as_f64();
     assert!(roundness.is_some_and(|r| r < 0.05), "{stdout}");
+    let _ = std::fs::remove_dir_all(&out);
+}
+
+/// A stream in camera mode decides from the image alone what stopped the belt: every part is
+/// sorted, every bottle that reaches the photo-eye is let through untouched, and the feeder's
+/// bottles are rendered and seen (they are the only bottles in `stream.toml`).
+#[test]
+fn camera_mode_sorts_a_stream_and_lets_its_bottles_pass() {
+    let out = std::env::temp_dir().join(format!("twincell-stream-camera-{}", std::process::id()));
+    let scenario = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/stream.toml");
+    let (code, stdout, stderr) = common::twincell(&[
+        "run",
+        &scenario.to_string_lossy(),
+        "--perception",
+        "camera",
+        "--trials",
+        "2",
+        "--out",
+        &out.to_string_lossy(),
+        "--jobs",
+        "2",
+        "--json",
+    ]);
+    assert_eq!(code, 0, "{stderr}");
+    let report: serde_json::Value = match serde_json::from_str(&stdout) {
+        Ok(v) => v,
+        Err(e) => panic!("report: {e}: {stdout}"),
+    };
+    assert_eq!(report["perception"], "camera");
+    assert_eq!(report["successes"], report["trials"], "{stdout}");
+    let stream = &report["stream"];
+    assert_eq!(stream["parts_sorted"], stream["parts_planned"], "{stdout}");
+    let passed = stream["bottles_passed"].as_u64().unwrap_or(0);
+    assert!(passed >= 1, "no bottle reached the photo-eye: {stdout}");
+    assert_eq!(report["distractor_picks"], 0);
+    assert_eq!(report["distractor_touches"], 0);
+    assert_eq!(report["sorting"]["clear_cut_misjudged"], 0);
     let _ = std::fs::remove_dir_all(&out);
 }

@@ -14,8 +14,8 @@ mod report_tests;
 mod summary_table;
 
 pub use crate::outcome::{
-    CLEAR_CUT_BAND_MM, DecisionRecord, FailureReason, Outcome, PartRecord, Perception,
-    StreamPartRecord, StreamRecord, TrialRecord, TrialRunner, TrialTiming,
+    DecisionRecord, FailureReason, Outcome, PartRecord, Perception, StreamPartRecord, StreamRecord,
+    TrialRecord, TrialRunner, TrialTiming,
 };
 pub use batch_plan::{BatchPlan, Shard, ShardError, trial_seed};
 pub use batch_runner::{

@@ -6,8 +6,8 @@ mod trial_record;
 
 pub use failure::{Failure, fail};
 pub use trial_record::{
-    CLEAR_CUT_BAND_MM, DecisionRecord, FailureReason, Outcome, PartRecord, Perception,
-    StreamPartRecord, StreamRecord, TrialRecord, TrialTiming,
+    DecisionRecord, FailureReason, Outcome, PartRecord, Perception, StreamPartRecord, StreamRecord,
+    TrialRecord, TrialTiming,
 };
 
 /// Runs one trial of a scenario. Implementations must be deterministic in `(index, seed)`.

@@ -85,10 +85,6 @@ impl FailureReason {
     }
 }
 
-/// Half-width of the band around the roundness tolerance inside which a verdict may go either
-/// way, mm.
-pub const CLEAR_CUT_BAND_MM: f64 = 0.05;
-
 /// The truth about the trial's part.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct PartRecord {
@@ -100,8 +96,9 @@ pub struct PartRecord {
     pub true_bore_diameter_mm: f64,
     /// Whether the truth says accept (roundness within tolerance).
     pub truly_acceptable: bool,
-    /// Whether the true roundness lies more than [`CLEAR_CUT_BAND_MM`] from the tolerance: a part
-    /// the sorter must always judge right (closer to the limit, measurement noise may decide).
+    /// Whether the true roundness lies further from the tolerance than the scenario's
+    /// `roundness_uncertainty_mm`: a part the sorter must always judge right (closer to the
+    /// limit, measurement noise may decide).
     #[serde(default)]
     pub clear_cut: bool,
     /// The bin the truth calls for.

@@ -77,7 +77,7 @@ fn one() -> u32 {
 
 /// The metrology's expanded uncertainty of roundness (k = 2) in the closed loop, mm, for
 /// scenarios that do not give their own.
-pub const DEFAULT_ROUNDNESS_UNCERTAINTY_MM: f64 = 0.05;
+pub const DEFAULT_ROUNDNESS_UNCERTAINTY_MM: f64 = 0.02;
 
 fn default_roundness_uncertainty_mm() -> f64 {
     DEFAULT_ROUNDNESS_UNCERTAINTY_MM
