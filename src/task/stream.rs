@@ -5,7 +5,7 @@
 
 use nalgebra::Point3;
 
-use super::camera_percept::{StationItem, TargetRule};
+use super::camera_percept::{Sighting, StationItem, TargetRule};
 use super::pick_cycle::Cycle;
 use super::trial::Trial;
 use crate::outcome::{
@@ -24,7 +24,7 @@ fn count_u32(n: usize) -> u32 {
 /// What perception says stopped the belt.
 enum AtEye {
     /// A part, to be picked; the camera's look, when it took one.
-    Part(Option<super::camera_percept::Sighting>),
+    Part(Option<Box<Sighting>>),
     /// A bottle, to be let through.
     Bottle,
 }
@@ -107,7 +107,7 @@ impl Trial<'_> {
         };
         let sighting = self.look(camera, TargetRule::AtBeam(self.beam_points()))?;
         match (sighting.at_station, true_part) {
-            (Some(StationItem::Part), Some(_)) => Ok(AtEye::Part(Some(sighting))),
+            (Some(StationItem::Part), Some(_)) => Ok(AtEye::Part(Some(Box::new(sighting)))),
             (Some(StationItem::Part), None) => Err(Failure::new(
                 FailureReason::Misidentified,
                 "the camera took the bottle at the photo-eye for a part",
@@ -144,7 +144,7 @@ impl Trial<'_> {
             first_stop_s.get_or_insert(self.pick_time_s.unwrap_or(0.0));
             match self.identify_at_eye() {
                 Ok(AtEye::Part(seen)) => {
-                    let cycle = self.pick_cycle(seen);
+                    let cycle = self.pick_cycle(seen.map(|s| *s));
                     touched |= cycle.touched;
                     picked |= cycle.picked;
                     displacement_m = displacement_m.max(cycle.displacement_m);
