@@ -182,34 +182,37 @@ fn bores_measured_in_their_areas_of_interest_locate_size_and_grade_the_part() {
     );
 }
 
+/// Runs `scenarios/NAME` through `twincell run ... --jobs 2 --json` with `extra` arguments in
+/// a scratch directory; returns the report, after checking that the run passed.
+fn run_report(name: &str, extra: &[&str]) -> serde_json::Value {
+    let out = std::env::temp_dir().join(format!("twincell-{name}-{}", std::process::id()));
+    let scenario = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("scenarios")
+        .join(name);
+    let (scenario, out_arg) = (scenario.to_string_lossy(), out.to_string_lossy());
+    let mut args = vec!["run", &scenario, "--out", &out_arg, "--jobs", "2", "--json"];
+    args.extend_from_slice(extra);
+    let (code, stdout, stderr) = common::twincell(&args);
+    assert_eq!(code, 0, "{stderr}");
+    let _ = std::fs::remove_dir_all(&out);
+    match serde_json::from_str(&stdout) {
+        Ok(v) => v,
+        Err(e) => panic!("report: {e}: {stdout}"),
+    }
+}
+
 /// `twincell run` in camera mode (the default) sorts every smoke trial into the right bin from
 /// rendered images alone, never touches the bottle, and measures the bores to hundredths of a
 /// millimetre.
 #[test]
 fn camera_mode_sorts_the_smoke_scenario() {
-    let out = std::env::temp_dir().join(format!("twincell-closed-loop-{}", std::process::id()));
-    let scenario = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/smoke.toml");
-    let (code, stdout, stderr) = common::twincell(&[
-        "run",
-        &scenario.to_string_lossy(),
-        "--out",
-        &out.to_string_lossy(),
-        "--jobs",
-        "2",
-        "--json",
-    ]);
-    assert_eq!(code, 0, "{stderr}");
-    let report: serde_json::Value = match serde_json::from_str(&stdout) {
-        Ok(v) => v,
-        Err(e) => panic!("report: {e}: {stdout}"),
-    };
+    let report = run_report("smoke.toml", &[]);
     assert_eq!(report["perception"], "camera");
-    assert_eq!(report["successes"], report["trials"], "{stdout}");
+    assert_eq!(report["successes"], report["trials"], "{report}");
     assert_eq!(report["distractor_picks"], 0);
     assert_eq!(report["sorting"]["clear_cut_misjudged"], 0);
     let roundness = report["metrology"]["roundness_error_mm"]["mean_mm"].as_f64();
-    assert!(roundness.is_some_and(|r| r < 0.05), "{stdout}");
-    let _ = std::fs::remove_dir_all(&out);
+    assert!(roundness.is_some_and(|r| r < 0.05), "{report}");
 }
 
 /// A stream in camera mode decides from the image alone what stopped the belt: every part is
@@ -217,34 +220,14 @@ fn camera_mode_sorts_the_smoke_scenario() {
 /// bottles are rendered and seen (they are the only bottles in `stream.toml`).
 #[test]
 fn camera_mode_sorts_a_stream_and_lets_its_bottles_pass() {
-    let out = std::env::temp_dir().join(format!("twincell-stream-camera-{}", std::process::id()));
-    let scenario = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/stream.toml");
-    let (code, stdout, stderr) = common::twincell(&[
-        "run",
-        &scenario.to_string_lossy(),
-        "--perception",
-        "camera",
-        "--trials",
-        "2",
-        "--out",
-        &out.to_string_lossy(),
-        "--jobs",
-        "2",
-        "--json",
-    ]);
-    assert_eq!(code, 0, "{stderr}");
-    let report: serde_json::Value = match serde_json::from_str(&stdout) {
-        Ok(v) => v,
-        Err(e) => panic!("report: {e}: {stdout}"),
-    };
+    let report = run_report("stream.toml", &["--perception", "camera", "--trials", "2"]);
     assert_eq!(report["perception"], "camera");
-    assert_eq!(report["successes"], report["trials"], "{stdout}");
+    assert_eq!(report["successes"], report["trials"], "{report}");
     let stream = &report["stream"];
-    assert_eq!(stream["parts_sorted"], stream["parts_planned"], "{stdout}");
+    assert_eq!(stream["parts_sorted"], stream["parts_planned"], "{report}");
     let passed = stream["bottles_passed"].as_u64().unwrap_or(0);
-    assert!(passed >= 1, "no bottle reached the photo-eye: {stdout}");
+    assert!(passed >= 1, "no bottle reached the photo-eye: {report}");
     assert_eq!(report["distractor_picks"], 0);
     assert_eq!(report["distractor_touches"], 0);
     assert_eq!(report["sorting"]["clear_cut_misjudged"], 0);
-    let _ = std::fs::remove_dir_all(&out);
 }

@@ -140,23 +140,27 @@ impl CameraCalibration {
     }
 }
 
+/// A camera 1 m above a plane at 0.1 m, looking straight down and slightly rolled: a fixture
+/// for the tests of the camera and of what is measured through it.
+#[cfg(test)]
+pub(crate) fn overhead_camera() -> CameraCalibration {
+    let rotation = nalgebra::UnitQuaternion::from_euler_angles(std::f64::consts::PI, 0.0, 0.3);
+    CameraCalibration {
+        fx_px: 1200.0,
+        fy_px: 1200.0,
+        cx_px: 320.0,
+        cy_px: 240.0,
+        world_from_camera: Isometry3::from_parts(
+            nalgebra::Translation3::new(0.1, -0.05, 1.0),
+            rotation,
+        ),
+        end_face_height_m: 0.1,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-    use nalgebra::{Translation3, UnitQuaternion};
-
-    fn overhead_camera() -> CameraCalibration {
-        // 1 m above the belt, looking straight down (camera z = world -z), slightly rolled.
-        let rotation = UnitQuaternion::from_euler_angles(std::f64::consts::PI, 0.0, 0.3);
-        CameraCalibration {
-            fx_px: 1200.0,
-            fy_px: 1200.0,
-            cx_px: 320.0,
-            cy_px: 240.0,
-            world_from_camera: Isometry3::from_parts(Translation3::new(0.1, -0.05, 1.0), rotation),
-            end_face_height_m: 0.1,
-        }
-    }
 
     #[test]
     fn project_inverts_pixel_to_plane() {

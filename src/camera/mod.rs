@@ -3,4 +3,6 @@
 
 mod calibration;
 
+#[cfg(test)]
+pub(crate) use calibration::overhead_camera;
 pub use calibration::{CameraCalibration, RayMissesPlane};

@@ -100,21 +100,8 @@ impl MeasureOnPlane for CameraCalibration {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::camera::overhead_camera;
     use crate::perception::roundness::DEFAULT_MAX_UPR;
-    use nalgebra::{Isometry3, Translation3, UnitQuaternion};
-
-    fn overhead_camera() -> CameraCalibration {
-        // 1 m above the belt, looking straight down (camera z = world -z), slightly rolled.
-        let rotation = UnitQuaternion::from_euler_angles(std::f64::consts::PI, 0.0, 0.3);
-        CameraCalibration {
-            fx_px: 1200.0,
-            fy_px: 1200.0,
-            cx_px: 320.0,
-            cy_px: 240.0,
-            world_from_camera: Isometry3::from_parts(Translation3::new(0.1, -0.05, 1.0), rotation),
-            end_face_height_m: 0.1,
-        }
-    }
 
     #[test]
     fn a_circle_on_the_plane_measures_its_diameter() {

@@ -7,18 +7,14 @@ use super::*;
 use crate::cell::BinBody;
 use crate::kinematics::{AnalyticIk, ArmModel, gripper_tcp, tcp_pose};
 use crate::outcome::FailureReason;
-use crate::scenario::BottleSection;
+use crate::scenario::{BottleSection, RobotSection};
 
 const BELT_TOP_Z: f64 = 0.70;
+
 /// The scenarios' home: TCP pointing down 0.3 m in front of the base and 0.4 m above it.
-const HOME: [f64; 6] = [
-    -1.153_817,
-    0.458_529,
-    1.673_047,
-    -0.356_278,
-    std::f64::consts::FRAC_PI_2,
-    0.416_979,
-];
+fn home() -> [f64; 6] {
+    RobotSection::default().home_q_rad
+}
 
 /// The robot as simple shapes on its frames: a wrist drum on the flange, two finger pads.
 fn robot_shapes() -> Vec<RobotShape> {
@@ -65,7 +61,7 @@ fn planner() -> PickPlanner {
         open_clearance_m: 0.012,
         speed_fraction: 0.6,
         carry_speed_fraction: 0.4,
-        home_q_rad: HOME,
+        home_q_rad: home(),
     }
 }
 
@@ -109,7 +105,7 @@ fn a_free_part_is_picked_upright_straight_down() {
     let planner = planner();
     let percept = percept([0.05, -0.45], Vec::new());
     let checker = planner.checker_for(&percept);
-    let Ok(plan) = planner.plan_pick(&percept, &checker, &HOME) else {
+    let Ok(plan) = planner.plan_pick(&percept, &checker, &home()) else {
         panic!("no pick for a free part in reach");
     };
     let Some(q_at) = plan.descend.end() else {
@@ -159,7 +155,7 @@ fn the_jaws_close_across_the_line_to_the_nearest_obstacle() {
         let obstacle = bottle_obstacle(&bottle(), &standing, false, 0.0);
         let percept = percept(part, vec![obstacle]);
         let checker = planner.checker_for(&percept);
-        let Ok(plan) = planner.plan_pick(&percept, &checker, &HOME) else {
+        let Ok(plan) = planner.plan_pick(&percept, &checker, &home()) else {
             panic!("no pick with a bottle 150 mm away at {angle_deg} deg");
         };
         let Some(q_at) = plan.descend.end() else {
@@ -186,7 +182,7 @@ fn a_tall_obstacle_raises_the_approach_and_the_lift() {
     );
     let free = percept([0.05, -0.45], Vec::new());
     let plan = |p: &Percept| {
-        let Ok(plan) = planner.plan_pick(p, &planner.checker_for(p), &HOME) else {
+        let Ok(plan) = planner.plan_pick(p, &planner.checker_for(p), &home()) else {
             panic!("no pick");
         };
         plan
@@ -217,7 +213,7 @@ fn an_obstacle_on_the_part_itself_is_a_collision_and_a_far_part_unreachable() {
         top_z: BELT_TOP_Z + 0.1,
     };
     let blocked = percept([0.05, -0.45], vec![wall]);
-    let Err(failure) = planner.plan_pick(&blocked, &planner.checker_for(&blocked), &HOME) else {
+    let Err(failure) = planner.plan_pick(&blocked, &planner.checker_for(&blocked), &home()) else {
         panic!("a pick through a plate over the part was planned");
     };
     assert_eq!(
@@ -227,7 +223,7 @@ fn an_obstacle_on_the_part_itself_is_a_collision_and_a_far_part_unreachable() {
         failure.detail
     );
     let far = percept([2.5, -0.45], Vec::new());
-    let Err(failure) = planner.plan_pick(&far, &planner.checker_for(&far), &HOME) else {
+    let Err(failure) = planner.plan_pick(&far, &planner.checker_for(&far), &home()) else {
         panic!("a part 2.5 m away was planned");
     };
     assert_eq!(failure.reason, FailureReason::Unreachable);
@@ -277,7 +273,7 @@ fn a_place_goes_into_the_slot_and_retreats_home() {
     let planner = planner();
     let percept = percept([0.05, -0.45], Vec::new());
     let checker = planner.checker_for(&percept);
-    let Ok(pick) = planner.plan_pick(&percept, &checker, &HOME) else {
+    let Ok(pick) = planner.plan_pick(&percept, &checker, &home()) else {
         panic!("no pick");
     };
     let bin = bin();
@@ -295,10 +291,10 @@ fn a_place_goes_into_the_slot_and_retreats_home() {
             (at.x - slot.x).hypot(at.y - slot.y) < 1e-3,
             "{at:?} vs {slot:?}"
         );
-        let Some(home) = place.retreat.end() else {
+        let Some(end) = place.retreat.end() else {
             panic!("empty retreat");
         };
-        assert!(home.iter().zip(HOME).all(|(a, b)| (a - b).abs() < 1e-9));
+        assert!(end.iter().zip(home()).all(|(a, b)| (a - b).abs() < 1e-9));
     }
     let far = BinBody {
         floor_center: Vector3::new(3.0, 0.0, 0.5),
