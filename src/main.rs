@@ -22,6 +22,10 @@ enum Command {
     Ik(cli::kinematics::IkArgs),
     /// Run a scenario's sorting trials as a headless batch.
     Run(cli::run::RunArgs),
+    /// Run every scenario file in a directory as a batch; one report, a row per scenario.
+    Suite(cli::suite::SuiteArgs),
+    /// Run a scenario over a grid of overrides (`--set KEY=V1,V2`); a row per grid point.
+    Sweep(cli::sweep::SweepArgs),
     /// Drive the simulated arm through random IK targets and report tracking errors.
     Demo(cli::demo::DemoArgs),
     /// Measure every bore (dark bore inside a bright rim) in images.
@@ -52,6 +56,8 @@ fn main() -> ExitCode {
         Command::Ik(args) => cli::kinematics::run_ik(&args),
         Command::Demo(args) => cli::demo::run_demo(&args),
         Command::Run(args) => cli::run::run(&args),
+        Command::Suite(args) => cli::suite::run(&args),
+        Command::Sweep(args) => cli::sweep::run(&args),
         Command::Bench(args) => cli::bench::run(&args),
         Command::Measure(args) => cli::measure::run(&args),
         Command::Merge(args) => cli::merge::run(&args),

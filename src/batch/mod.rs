@@ -11,7 +11,9 @@ mod progress_bar;
 mod report;
 #[cfg(test)]
 mod report_tests;
+mod suite;
 mod summary_table;
+mod sweep;
 
 pub use crate::outcome::{
     DecisionRecord, FailureReason, Outcome, PartRecord, Perception, StreamPartRecord, StreamRecord,
@@ -30,3 +32,5 @@ pub use report::{
     Sorting, StageTiming, StageTimings, StreamSummary, Timing, VerdictCounts, Z95, exit_code,
     passes_gate, wilson_interval,
 };
+pub use suite::{BatchRow, SuiteReport, write_json_report};
+pub use sweep::{SweepAxisReport, SweepPoint, SweepReport};

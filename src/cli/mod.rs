@@ -3,6 +3,7 @@
 
 use std::process::ExitCode;
 
+pub mod batch_options;
 pub mod bench;
 pub mod demo;
 pub mod detect;
@@ -11,6 +12,8 @@ pub mod measure;
 pub mod merge;
 pub mod render;
 pub mod run;
+pub mod suite;
+pub mod sweep;
 
 /// Exit code for bad input (the message names the file, key and reason).
 pub const EXIT_BAD_INPUT: u8 = 2;

@@ -10,7 +10,7 @@ use clap::Args;
 use twincell::batch::{BatchPlan, BatchSummary, Perception, Shard, cancel_on_signals, run_batch};
 #[cfg(feature = "record")]
 use twincell::record::{DEFAULT_VIEWER_ADDR, RerunRecorder};
-use twincell::scenario::Scenario;
+use twincell::scenario::{Override, Scenario};
 use twincell::task::CellTrialRunner;
 
 use super::BadInput;
@@ -26,6 +26,10 @@ pub struct RunArgs {
     /// Number of trials (overrides the file's).
     #[arg(long)]
     trials: Option<u32>,
+    /// Override a scenario key before validation, e.g. `sensor.noise_sigma=4` or
+    /// `part_types.axle_c44.grip_force_n=80` (repeatable; see docs/suite.md).
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    set: Vec<Override>,
     /// Output directory for trials.jsonl, report.json and junit.xml.
     #[arg(long, value_name = "DIR", default_value = "out")]
     out: PathBuf,
@@ -72,7 +76,8 @@ pub fn run(args: &RunArgs) -> Result<ExitCode> {
 /// Loads the scenario, applies the overrides and runs the batch (with a progress bar when
 /// `progress`), writing the output directory.
 pub fn run_scenario(args: &RunArgs, progress: bool) -> Result<BatchSummary> {
-    let mut scenario = Scenario::load(&args.scenario).map_err(|e| BadInput(e.to_string()))?;
+    let mut scenario =
+        Scenario::load_with(&args.scenario, &args.set).map_err(|e| BadInput(e.to_string()))?;
     if let Some(seed) = args.seed {
         scenario.seed = seed;
     }

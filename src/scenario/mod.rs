@@ -2,12 +2,16 @@
 //!
 //! Every field is validated on load; an error names the file, the key and the reason.
 
+mod overrides;
 mod validate;
 
 use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
+pub use overrides::{
+    Override, OverrideSyntaxError, SweepAxis, parse_value, split_values, sweep_grid,
+};
 pub use validate::ScenarioError;
 
 /// A whole scenario.
