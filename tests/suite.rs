@@ -225,6 +225,11 @@ fn a_suite_runs_every_scenario_file_with_its_gate_per_scenario() {
         assert_eq!(without_timing(&out.join(dir)).len(), 2);
     }
     assert_eq!(report["passed"], false);
+    let html = read(&out.join("report.html"));
+    assert!(
+        html.contains("hopeless") && html.contains("FAILED"),
+        "{html}"
+    );
     assert_eq!(run_ok(&strs(&args("0.0"))), 0);
 
     // A bad file stops the suite before any trial.

@@ -4,6 +4,7 @@
 mod batch_plan;
 mod batch_runner;
 mod error;
+mod html;
 mod interrupt;
 mod junit;
 mod merge;
@@ -24,6 +25,7 @@ pub use batch_runner::{
     BatchSummary, JUNIT_FILE, REPORT_FILE, TRIALS_FILE, run_batch, write_reports,
 };
 pub use error::BatchError;
+pub use html::{HTML_FILE, HtmlError, HtmlPage, successful_cycle_times};
 pub use interrupt::cancel_on_signals;
 pub use junit::{junit_xml, testcase_name, xml_escape};
 pub use merge::{MergeError, MergeSummary, merge_shards};

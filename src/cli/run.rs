@@ -113,6 +113,7 @@ pub fn run_scenario(args: &RunArgs, progress: bool) -> Result<BatchSummary> {
     let cancel = Arc::new(AtomicBool::new(false));
     cancel_on_signals(&cancel)?;
     let summary = run_batch(&runner, &plan, &args.out, &cancel, progress)?;
+    twincell::batch::HtmlPage::for_batch(&summary.report, &args.out)?.write(&args.out)?;
     #[cfg(feature = "record")]
     if let Some(recorder) = recorder {
         recorder.finish()?;

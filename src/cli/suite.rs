@@ -7,7 +7,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use anyhow::Result;
 use clap::Args;
-use twincell::batch::{BatchRow, SuiteReport, cancel_on_signals, write_json_report};
+use twincell::batch::{BatchRow, HtmlPage, SuiteReport, cancel_on_signals, write_json_report};
 use twincell::scenario::{Override, Scenario};
 
 use super::BadInput;
@@ -77,6 +77,13 @@ pub fn run(args: &SuiteArgs) -> Result<ExitCode> {
         report.passed = false;
     }
     write_json_report(&opts.out, &report)?;
+    let rows = report
+        .scenarios
+        .iter()
+        .map(|r| (r.scenario.clone(), r.clone()))
+        .collect();
+    let title = format!("twincell suite {}", report.suite);
+    HtmlPage::for_rows(&title, &report.perception_note, rows, &opts.out)?.write(&opts.out)?;
     if opts.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
     } else {

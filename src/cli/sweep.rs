@@ -7,7 +7,9 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use anyhow::Result;
 use clap::Args;
-use twincell::batch::{BatchRow, SweepPoint, SweepReport, cancel_on_signals, write_json_report};
+use twincell::batch::{
+    BatchRow, HtmlPage, SweepPoint, SweepReport, cancel_on_signals, write_json_report,
+};
 use twincell::scenario::{Scenario, SweepAxis, sweep_grid};
 
 use super::BadInput;
@@ -68,6 +70,23 @@ pub fn run(args: &SweepArgs) -> Result<ExitCode> {
         report.passed = false;
     }
     write_json_report(&opts.out, &report)?;
+    let rows = report
+        .points
+        .iter()
+        .map(|p| {
+            let label: Vec<String> = p
+                .overrides
+                .iter()
+                .map(|(k, v)| format!("{k}={v}"))
+                .collect();
+            (label.join(" "), p.row.clone())
+        })
+        .collect();
+    let title = format!(
+        "twincell sweep of {} (seed {})",
+        report.scenario, report.seed
+    );
+    HtmlPage::for_rows(&title, &report.perception_note, rows, &opts.out)?.write(&opts.out)?;
     if opts.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
     } else {
