@@ -51,6 +51,13 @@ fn plot_error<E: std::fmt::Display>(plot: &'static str) -> impl Fn(E) -> HtmlErr
     }
 }
 
+/// The upper end of a segmented range of `count` rows. Such a range holds both its ends, so
+/// `count - 1` leaves no empty slot; but plotters labels no segment of a one-value range, which
+/// one row therefore shares with an empty slot.
+fn last_segment(count: u32) -> u32 {
+    if count > 1 { count - 1 } else { 1 }
+}
+
 /// What a page shows: a title, a note on the perception mode, and labelled batches.
 #[derive(Debug, Clone)]
 pub struct HtmlPage {
@@ -214,7 +221,7 @@ impl HtmlPage {
                 .margin(12)
                 .x_label_area_size(36)
                 .y_label_area_size(52)
-                .build_cartesian_2d((0..n).into_segmented(), 0f64..1.02)
+                .build_cartesian_2d((0..last_segment(n)).into_segmented(), 0f64..1.02)
                 .map_err(&err)?;
             chart
                 .configure_mesh()
@@ -299,7 +306,7 @@ impl HtmlPage {
                 .margin(12)
                 .x_label_area_size(36)
                 .y_label_area_size(170)
-                .build_cartesian_2d(0u32..most + 1, (0..k).into_segmented())
+                .build_cartesian_2d(0u32..most + 1, (0..last_segment(k)).into_segmented())
                 .map_err(&err)?;
             chart
                 .configure_mesh()
@@ -322,13 +329,15 @@ impl HtmlPage {
                 .map_err(&err)?;
             chart
                 .draw_series(reasons.iter().zip(0u32..).map(|((_, n), i)| {
-                    Rectangle::new(
+                    let mut bar = Rectangle::new(
                         [
                             (0, SegmentValue::Exact(i)),
                             (*n, SegmentValue::Exact(i + 1)),
                         ],
                         RED.mix(0.6).filled(),
-                    )
+                    );
+                    bar.set_margin(3, 3, 0, 0);
+                    bar
                 }))
                 .map_err(&err)?;
             root.present().map_err(&err)?;
