@@ -54,6 +54,10 @@ pub struct RimScan {
     pub bore_level: f64,
     /// Median level of the rim next to the edge.
     pub rim_level: f64,
+    /// Spread of the rim's level next to the edge around the bore (80th minus 20th percentile
+    /// over the rays), as a share of the contrast: small for one machined face under smooth
+    /// light, large for a dark disc between a bottle's body and the belt.
+    pub rim_spread: f64,
     /// Share of the walked rays whose rim stayed flat.
     pub flat_share: f64,
     /// Median width of the rim over the rays where it ended inside the image (`None` when it
@@ -104,6 +108,9 @@ pub fn scan_rim(
     let bore_level = median_of(&mut bore_levels);
     let rim_level = median_of(&mut rim_levels);
     let contrast = rim_level - bore_level;
+    rim_levels.sort_by(f64::total_cmp);
+    let percentile = |q: f64| rim_levels[((rim_levels.len() - 1) as f64 * q).round() as usize];
+    let rim_spread = (percentile(0.8) - percentile(0.2)) / contrast.max(1.0);
     let end_level = bore_level + params.end_share * contrast;
     let mut flat = 0usize;
     let mut walked = 0usize;
@@ -151,6 +158,7 @@ pub fn scan_rim(
     Some(RimScan {
         bore_level,
         rim_level,
+        rim_spread,
         flat_share: flat as f64 / walked as f64,
         wall_px: median(&mut walls),
         outer_ratio: median(&mut ratios),
@@ -201,6 +209,7 @@ mod tests {
                     panic!("no scan");
                 };
                 assert!(scan.flat_share > 0.95, "r {r} ratio {ratio}: {scan:?}");
+                assert!(scan.rim_spread < 0.2, "r {r} ratio {ratio}: {scan:?}");
                 let Some(wall) = scan.wall_px else {
                     panic!("r {r} ratio {ratio} belt {belt}: the rim never ended: {scan:?}");
                 };

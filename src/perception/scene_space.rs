@@ -15,6 +15,9 @@ use std::f64::consts::{PI, TAU};
 pub const MIN_WALL_RATIO: f64 = 1.15;
 /// Largest ratio of the rim's outer diameter to the bore's.
 pub const MAX_WALL_RATIO: f64 = 3.0;
+/// Thinnest wall drawn, pixels: a thinner rim has no level of its own between the bore's and
+/// the belt's edges once sampled, which the edge model needs (see [`crate::perception::subpixel`]).
+pub const MIN_WALL_PX: f64 = 3.0;
 /// Smallest bore radius drawn, pixels.
 pub const MIN_BORE_RADIUS_PX: f64 = 12.0;
 /// A whole bore keeps at least this many pixels between its edge and the image border; a cut
@@ -57,9 +60,13 @@ pub fn space_scene(seed: u64, width_px: u32, height_px: u32) -> SpaceScene {
     let mut bores = Vec::new();
     let tube_count = 1 + rng.below(6) as usize;
     for _ in 0..tube_count {
-        let ratio = rng.range(MIN_WALL_RATIO, MAX_WALL_RATIO);
         // Log-uniform: as many small bores as large ones.
         let radius = (rng.range(MIN_BORE_RADIUS_PX.ln(), max_bore.ln())).exp();
+        // Walls of at least MIN_WALL_PX: only bores under 20 px lose part of the thinnest walls.
+        let ratio = rng.range(
+            MIN_WALL_RATIO.max(1.0 + MIN_WALL_PX / radius),
+            MAX_WALL_RATIO,
+        );
         let shape = draw_shape(&mut rng, radius);
         let outer = ratio * radius;
         let cut = rng.uniform() < 0.15;
@@ -201,7 +208,7 @@ fn draw_bottles(rng: &mut SimRng, discs: &mut Vec<Disc>, [w, h]: [f64; 2]) -> Ve
     let mut bottles = Vec::new();
     for _ in 0..rng.below(3) {
         let cap_level = if rng.uniform() < 0.5 {
-            rng.range(30.0, 90.0)
+            rng.range(40.0, 90.0)
         } else {
             rng.range(150.0, 230.0)
         };
@@ -243,52 +250,80 @@ fn draw_bottles(rng: &mut SimRng, discs: &mut Vec<Disc>, [w, h]: [f64; 2]) -> Ve
     bottles
 }
 
-/// Oil stains (sharp or soft rimmed) on rims, across bore edges and on the belt, and small dark
-/// specks of dirt.
+/// Oil stains on rims (sharp or soft rimmed, never across the whole wall), across bore edges
+/// (soft rimmed, up to a third of the bore radius) and on the belt, and small dark specks of dirt.
 fn draw_stains(rng: &mut SimRng, tubes: &[Tube], [w, h]: [f64; 2]) -> Vec<Stain> {
     let mut stains = Vec::new();
     for _ in 0..rng.below(5) {
-        let radius = rng.range(4.0, 20.0);
-        let centre = match (tubes.is_empty(), rng.below(3)) {
-            (false, 0) => {
-                // On a rim, anywhere across its width.
-                let tube = &tubes[rng.below(tubes.len() as u64) as usize];
-                let r = rng.range(tube.bore.mean_radius_px(), tube.outer_radius_px);
-                let a = rng.range(0.0, TAU);
-                [
-                    tube.centre_px[0] + r * a.cos(),
-                    tube.centre_px[1] + r * a.sin(),
-                ]
-            }
-            (false, 1) => {
-                // Across the bore edge.
-                let tube = &tubes[rng.below(tubes.len() as u64) as usize];
-                let r = tube.bore.mean_radius_px() + rng.range(0.0, 6.0);
-                let a = rng.range(0.0, TAU);
-                [
-                    tube.centre_px[0] + r * a.cos(),
-                    tube.centre_px[1] + r * a.sin(),
-                ]
-            }
-            _ => [rng.range(0.0, w), rng.range(0.0, h)],
-        };
-        let radius = match tubes.iter().find(|t| {
-            (t.centre_px[0] - centre[0]).hypot(t.centre_px[1] - centre[1]) < t.outer_radius_px
-        }) {
-            // At most half the bore's radius, so a stain never hides most of a small bore's edge.
-            Some(t) => radius.min(0.5 * t.bore.mean_radius_px()),
-            None => radius,
-        };
-        let soft = rng.uniform() < 0.5;
-        stains.push(Stain {
-            centre_px: centre,
-            radius_px: radius,
-            harmonics: (0..3)
+        let shape = |rng: &mut SimRng| {
+            (0..3)
                 .map(|_| (rng.range(0.0, 0.15), rng.range(0.0, TAU)))
-                .collect(),
-            transmission: rng.range(0.55, 0.8),
-            soft_px: if soft { 0.6 * radius } else { 0.0 },
-        });
+                .collect::<Vec<_>>()
+        };
+        let transmission = rng.range(0.55, 0.8);
+        let kind = if tubes.is_empty() { 2 } else { rng.below(3) };
+        let stain = match kind {
+            0 => {
+                // On a rim, sharp or soft, anywhere across its width but never across all of it
+                // (a stain over the whole wall leaves no rim around the bore to find it by).
+                let tube = &tubes[rng.below(tubes.len() as u64) as usize];
+                let wall = tube.outer_radius_px - tube.bore.max_radius_px();
+                let radius = rng.range(2.0, 20.0).min(0.4 * wall).max(1.0);
+                // At least 3 px clear of the bore edge: a sharp stain touching it is the next
+                // kind's business.
+                let r = tube.bore.max_radius_px()
+                    + rng.range(radius + 3.0, (wall - radius).max(radius + 3.0));
+                let a = rng.range(0.0, TAU);
+                let soft = rng.uniform() < 0.5;
+                Stain {
+                    centre_px: [
+                        tube.centre_px[0] + r * a.cos(),
+                        tube.centre_px[1] + r * a.sin(),
+                    ],
+                    radius_px: radius,
+                    harmonics: shape(rng),
+                    transmission,
+                    soft_px: if soft { 0.6 * radius } else { 0.0 },
+                }
+            }
+            1 => {
+                // Oil across the bore edge: thinning out towards its rim (soft), as on the
+                // rendered end faces, and at most a third of the bore's radius.
+                let tube = &tubes[rng.below(tubes.len() as u64) as usize];
+                let r_bore = tube.bore.mean_radius_px();
+                let wall = tube.outer_radius_px - tube.bore.max_radius_px();
+                let radius = rng
+                    .range(3.0, 12.0)
+                    .min(r_bore / 3.0)
+                    .min(0.8 * wall)
+                    .max(1.5);
+                let r = r_bore + rng.range(0.0, radius.min(6.0));
+                let a = rng.range(0.0, TAU);
+                Stain {
+                    centre_px: [
+                        tube.centre_px[0] + r * a.cos(),
+                        tube.centre_px[1] + r * a.sin(),
+                    ],
+                    radius_px: radius,
+                    harmonics: Vec::new(),
+                    transmission,
+                    soft_px: 0.6 * radius,
+                }
+            }
+            _ => {
+                // On the belt, sharp or soft, wherever it falls.
+                let radius = rng.range(4.0, 20.0);
+                let soft = rng.uniform() < 0.5;
+                Stain {
+                    centre_px: [rng.range(0.0, w), rng.range(0.0, h)],
+                    radius_px: radius,
+                    harmonics: shape(rng),
+                    transmission,
+                    soft_px: if soft { 0.6 * radius } else { 0.0 },
+                }
+            }
+        };
+        stains.push(stain);
     }
     for _ in 0..rng.below(6) {
         stains.push(Stain {

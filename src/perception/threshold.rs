@@ -182,6 +182,16 @@ pub fn binarize(image: &GrayImage, level: u8) -> GrayImage {
     out
 }
 
+/// Sets bright (255) every pixel of `binary` whose level in `image` is above `level` (both images
+/// the same size).
+pub fn brighten_above(binary: &mut GrayImage, image: &GrayImage, level: u8) {
+    for (b, &p) in binary.iter_mut().zip(image.iter()) {
+        if p > level {
+            *b = 255;
+        }
+    }
+}
+
 /// Otsu's level: pixels `> level` form the bright class.
 pub fn otsu_level(image: &GrayImage) -> u8 {
     imageproc::contrast::otsu_level(image)
