@@ -57,7 +57,8 @@ fn two_tubes() -> (Scene, [[f64; 3]; 2]) {
         },
         noise_seed: 3,
     };
-    let truth = [[180.3, 240.6, 0.0], [470.8, 200.2, 3.0]];
+    // In the output's order: by y.
+    let truth = [[470.8, 200.2, 3.0], [180.3, 240.6, 0.0]];
     (scene, truth)
 }
 

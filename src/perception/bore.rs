@@ -142,7 +142,7 @@ impl Default for BoreDetectorParams {
             min_ring_width_px: 1.5,
             min_flat_share: 0.6,
             // A linear light gradient of 40 % across the frame spreads a 160 px bore's rim by
-            // about 0.18; a lying bottle's dark cap between its body and the belt by 0.4 and more.
+            // about 0.15; a lying bottle's dark cap between its body and the belt by more.
             max_rim_spread: 0.3,
             min_valid_share: 0.7,
             max_roundness_ratio: 0.25,

@@ -54,7 +54,7 @@ pub struct RimScan {
     pub bore_level: f64,
     /// Median level of the rim next to the edge.
     pub rim_level: f64,
-    /// Spread of the rim's level next to the edge around the bore (80th minus 20th percentile
+    /// Spread of the rim's level next to the edge around the bore (75th minus 25th percentile
     /// over the rays), as a share of the contrast: small for one machined face under smooth
     /// light, large for a dark disc between a bottle's body and the belt.
     pub rim_spread: f64,
@@ -110,7 +110,8 @@ pub fn scan_rim(
     let contrast = rim_level - bore_level;
     rim_levels.sort_by(f64::total_cmp);
     let percentile = |q: f64| rim_levels[((rim_levels.len() - 1) as f64 * q).round() as usize];
-    let rim_spread = (percentile(0.8) - percentile(0.2)) / contrast.max(1.0);
+    // The middle half only: a stain may darken the rim on a quarter of the rays.
+    let rim_spread = (percentile(0.75) - percentile(0.25)) / contrast.max(1.0);
     let end_level = bore_level + params.end_share * contrast;
     let mut flat = 0usize;
     let mut walked = 0usize;
