@@ -55,14 +55,16 @@ pub struct BoreReport {
 
 /// Sets the outermost rows and columns of a binary image bright.
 pub(crate) fn brighten_frame(binary: &mut GrayImage) {
-    let (w, h) = (binary.width(), binary.height());
-    for x in 0..w {
-        binary.put_pixel(x, 0, image::Luma([255]));
-        binary.put_pixel(x, h - 1, image::Luma([255]));
-    }
-    for y in 0..h {
-        binary.put_pixel(0, y, image::Luma([255]));
-        binary.put_pixel(w - 1, y, image::Luma([255]));
+    let w = binary.width() as usize;
+    let raw: &mut [u8] = binary;
+    let rows = raw.len() / w.max(1);
+    for (y, row) in raw.chunks_exact_mut(w).enumerate() {
+        if y == 0 || y + 1 == rows {
+            row.fill(255);
+        } else {
+            row[0] = 255;
+            row[w - 1] = 255;
+        }
     }
 }
 

@@ -384,7 +384,9 @@ impl BoreDetector {
         {
             return None;
         }
-        let ray_count = ((TAU * coarse.radius).round() as usize).clamp(180, 1024);
+        // About a ray per pixel of circumference, at most 720 (a quarter degree apart: plenty
+        // for a profile filtered to 15 undulations, and every ray costs).
+        let ray_count = ((TAU * coarse.radius).round() as usize).clamp(180, 720);
         let coarse_radii = binned_radii(&border, coarse.centre, ray_count, coarse.radius);
         let rays: Vec<RayDir> = (0..ray_count)
             .map(|i| RayDir::new(TAU * i as f64 / ray_count as f64))

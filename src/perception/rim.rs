@@ -38,7 +38,7 @@ pub struct RimParams {
 impl Default for RimParams {
     fn default() -> Self {
         Self {
-            rays: 48,
+            rays: 32,
             start_px: 1.5,
             max_outer_ratio: 3.3,
             end_share: 0.6,
