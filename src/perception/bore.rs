@@ -41,7 +41,9 @@ use crate::perception::roundness::{
     DEFAULT_MAX_UPR, filtered_roundness_bridged, fit_series_robust, median_of,
 };
 use crate::perception::subpixel::{EdgePoint, RayDir, RayParams, refine_ray};
-use crate::perception::threshold::{ThresholdMethod, brighten_above, otsu_level};
+use crate::perception::threshold::{
+    ThresholdMethod, adaptive_mean_threshold_floored, brighten_above, otsu_level,
+};
 use image::GrayImage;
 use std::f64::consts::TAU;
 
@@ -277,10 +279,26 @@ impl BoreDetector {
             });
         }
         let filtered = self.params.filter.apply(image);
-        let mut binary = self.params.threshold.apply(&filtered);
-        if self.params.bright_above_otsu {
-            brighten_above(&mut binary, &filtered, otsu_level(&filtered));
-        }
+        let mut binary = match (self.params.threshold, self.params.bright_above_otsu) {
+            (
+                ThresholdMethod::AdaptiveMean {
+                    block_radius_px,
+                    delta,
+                },
+                true,
+            ) => adaptive_mean_threshold_floored(
+                &filtered,
+                block_radius_px,
+                delta,
+                otsu_level(&filtered),
+            ),
+            (method, true) => {
+                let mut binary = method.apply(&filtered);
+                brighten_above(&mut binary, &filtered, otsu_level(&filtered));
+                binary
+            }
+            (method, false) => method.apply(&filtered),
+        };
         // A bright frame closes a bore cut by the border into a hole whose border runs along
         // the frame, so it can be recognised and skipped rather than lost without a word.
         brighten_frame(&mut binary);
@@ -556,7 +574,9 @@ fn binned_radii(points: &[[f64; 2]], centre: [f64; 2], bins: usize, fallback: f6
     for q in points {
         let (dx, dy) = (q[0] - centre[0], q[1] - centre[1]);
         let angle = dy.atan2(dx).rem_euclid(TAU);
-        let bin = ((angle / TAU * bins as f64).round() as usize) % bins;
+        // Truncation of the value plus a half: `round` for these non-negative values, without
+        // a libm call per border point.
+        let bin = ((angle / TAU * bins as f64 + 0.5) as usize) % bins;
         sum[bin] += distance(dx, dy);
         count[bin] += 1;
     }

@@ -152,7 +152,9 @@ pub fn refine_ray(
     }
     let [c, s] = ray.unit;
     let step = params.step_px;
-    let steps_of = |d: f64| (d / step).round() as isize;
+    // Truncation of the value plus a half: `round` for these non-negative values, without a libm
+    // call (rounding instructions need SSE4.1, beyond the baseline target).
+    let steps_of = |d: f64| (d / step + 0.5) as isize;
     let (search, near, far) = (
         steps_of(params.search_half_px),
         steps_of(params.level_near_px),
@@ -165,7 +167,7 @@ pub fn refine_ray(
     let reach = search + far.max(half + 1);
     // The profile's first sample may not pass the centre: keep `reach` samples inside.
     let t0 = (expected_radius_px - reach as f64 * step).max(0.0);
-    let centre_index = ((expected_radius_px - t0) / step).round() as isize;
+    let centre_index = ((expected_radius_px - t0) / step + 0.5) as isize;
     let count = (centre_index + reach + 1) as usize;
     let samples = RaySamples {
         image,

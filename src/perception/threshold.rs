@@ -62,24 +62,41 @@ impl ThresholdMethod {
 /// Runs the same code compiled for AVX2 where the CPU has it (chosen at run time): every step is
 /// exact integer or exact `f32` arithmetic, so both builds give the same bytes (tested).
 pub fn adaptive_mean_threshold(image: &GrayImage, block_radius_px: u32, delta: i32) -> GrayImage {
+    adaptive_mean_threshold_floored(image, block_radius_px, delta, u8::MAX)
+}
+
+/// [`adaptive_mean_threshold`], and bright wherever `p > floor` too (a global level under the
+/// local one: see [`crate::perception::bore::BoreDetectorParams::bright_above_otsu`]), in the same
+/// pass; `floor = 255` adds nothing.
+pub fn adaptive_mean_threshold_floored(
+    image: &GrayImage,
+    block_radius_px: u32,
+    delta: i32,
+    floor: u8,
+) -> GrayImage {
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx2") {
         // SAFETY: the function only requires AVX2, which the CPU was just found to have.
-        return unsafe { adaptive_mean_avx2(image, block_radius_px, delta) };
+        return unsafe { adaptive_mean_avx2(image, block_radius_px, delta, floor) };
     }
-    adaptive_mean_kernel(image, block_radius_px, delta)
+    adaptive_mean_kernel(image, block_radius_px, delta, floor)
 }
 
 /// [`adaptive_mean_kernel`] compiled for AVX2.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-fn adaptive_mean_avx2(image: &GrayImage, block_radius_px: u32, delta: i32) -> GrayImage {
-    adaptive_mean_kernel(image, block_radius_px, delta)
+fn adaptive_mean_avx2(image: &GrayImage, block_radius_px: u32, delta: i32, floor: u8) -> GrayImage {
+    adaptive_mean_kernel(image, block_radius_px, delta, floor)
 }
 
-/// The body of [`adaptive_mean_threshold`], inlined into each instruction-set variant.
+/// The body of [`adaptive_mean_threshold_floored`], inlined into each instruction-set variant.
 #[inline(always)]
-fn adaptive_mean_kernel(image: &GrayImage, block_radius_px: u32, delta: i32) -> GrayImage {
+fn adaptive_mean_kernel(
+    image: &GrayImage,
+    block_radius_px: u32,
+    delta: i32,
+    floor: u8,
+) -> GrayImage {
     let (w, h) = (image.width() as usize, image.height() as usize);
     let mut out = GrayImage::new(image.width(), image.height());
     if w == 0 || h == 0 {
@@ -125,7 +142,11 @@ fn adaptive_mean_kernel(image: &GrayImage, block_radius_px: u32, delta: i32) -> 
             let sum = i64::from(prefix[x_high + 1].wrapping_sub(prefix[x_low]));
             // p >= floor(sum / count) - delta  <=>  (p + delta + 1) * count > sum.
             let k = i64::from(src_row[x]) + i64::from(delta) + 1;
-            if k * count > sum { 255 } else { 0 }
+            if k * count > sum || src_row[x] > floor {
+                255
+            } else {
+                0
+            }
         };
         // Interior columns share one block size: a branch-free loop the compiler vectorises, in
         // f32 lanes (SSE2 has no 32-bit integer multiply), exact while every product and sum
@@ -152,7 +173,7 @@ fn adaptive_mean_kernel(image: &GrayImage, block_radius_px: u32, delta: i32) -> 
             {
                 let sum = hi.wrapping_sub(lo) as i32 as f32;
                 let k = f32::from(p) + offset;
-                *o = if k * count > sum { 255 } else { 0 };
+                *o = if k * count > sum || p > floor { 255 } else { 0 };
             }
         }
     }
@@ -315,7 +336,19 @@ mod tests {
             let oracle = imageproc::contrast::adaptive_threshold(&image, radius, delta);
             prop_assert_eq!(ours.as_raw(), oracle.as_raw());
             // The baseline build too, whichever the dispatch picked.
-            let portable = adaptive_mean_kernel(&image, radius, delta);
+            let portable = adaptive_mean_kernel(&image, radius, delta, u8::MAX);
+            prop_assert_eq!(portable.as_raw(), oracle.as_raw());
+        }
+
+        #[test]
+        fn a_floored_adaptive_mean_is_imageproc_or_above_the_floor(
+            image in arbitrary_image(), radius in 1u32..25, delta in -40i32..40, floor in any::<u8>()
+        ) {
+            let mut oracle = imageproc::contrast::adaptive_threshold(&image, radius, delta);
+            brighten_above(&mut oracle, &image, floor);
+            let ours = adaptive_mean_threshold_floored(&image, radius, delta, floor);
+            prop_assert_eq!(ours.as_raw(), oracle.as_raw());
+            let portable = adaptive_mean_kernel(&image, radius, delta, floor);
             prop_assert_eq!(portable.as_raw(), oracle.as_raw());
         }
 
@@ -331,7 +364,7 @@ mod tests {
             let ours = adaptive_mean_threshold(&image, 20, delta);
             let oracle = imageproc::contrast::adaptive_threshold(&image, 20, delta);
             prop_assert_eq!(ours.as_raw(), oracle.as_raw());
-            let portable = adaptive_mean_kernel(&image, 20, delta);
+            let portable = adaptive_mean_kernel(&image, 20, delta, u8::MAX);
             prop_assert_eq!(portable.as_raw(), oracle.as_raw());
         }
 
