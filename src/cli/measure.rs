@@ -222,7 +222,9 @@ pub fn run(args: &MeasureArgs) -> anyhow::Result<ExitCode> {
                                 mm.cx_mm, mm.cy_mm, mm.r_mm, mm.roundness_mm
                             )?;
                             match (mm.verdict, mm.guard_band_mm) {
-                                (Some(v), Some(g)) => writeln!(stdout, "  {v:?} (band {g:.4} mm)")?,
+                                (Some(v), Some(g)) => {
+                                    writeln!(stdout, "  {} (band {g:.4} mm)", v.name())?
+                                }
                                 _ => writeln!(stdout)?,
                             }
                         }

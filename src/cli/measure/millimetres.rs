@@ -32,6 +32,15 @@ pub(super) enum Verdict {
 }
 
 impl Verdict {
+    /// The verdict as the JSON writes it.
+    pub(super) fn name(&self) -> &'static str {
+        match self {
+            Self::Conforming => "conforming",
+            Self::NotConforming => "not_conforming",
+            Self::Undecided => "undecided",
+        }
+    }
+
     fn of(roundness_mm: f64, tolerance_mm: f64, band_mm: f64) -> Self {
         if roundness_mm + band_mm <= tolerance_mm {
             Self::Conforming
