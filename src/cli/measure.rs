@@ -153,10 +153,10 @@ pub fn run(args: &MeasureArgs) -> anyhow::Result<ExitCode> {
         }
         positive("--tolerance-mm", t)?;
     }
-    if let Some(g) = args.guard_band_mm {
-        if !(g.is_finite() && g >= 0.0) {
-            return Err(BadInput(format!("--guard-band-mm: {g} is not a length >= 0")).into());
-        }
+    if let Some(g) = args.guard_band_mm
+        && !(g.is_finite() && g >= 0.0)
+    {
+        return Err(BadInput(format!("--guard-band-mm: {g} is not a length >= 0")).into());
     }
     let detector = BoreDetector::default();
     let mut images = Vec::with_capacity(args.images.len());
@@ -164,14 +164,14 @@ pub fn run(args: &MeasureArgs) -> anyhow::Result<ExitCode> {
     for path in &args.images {
         let file = path.display().to_string();
         let measured = load_gray(path).and_then(|image| {
-            if let Some(Scale::Camera(_, w, h)) = scale {
-                if image.dimensions() != (w, h) {
-                    return Err(format!(
-                        "image is {}x{} px but the calibration's width_px x height_px is {w}x{h}",
-                        image.width(),
-                        image.height()
-                    ));
-                }
+            if let Some(Scale::Camera(_, w, h)) = scale
+                && image.dimensions() != (w, h)
+            {
+                return Err(format!(
+                    "image is {}x{} px but the calibration's width_px x height_px is {w}x{h}",
+                    image.width(),
+                    image.height()
+                ));
             }
             time_detect(&detector, &image)
         });
