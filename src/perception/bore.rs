@@ -31,8 +31,8 @@
 
 pub use crate::perception::border_cut::{BoreReport, SkipReason, SkippedBore};
 use crate::perception::border_cut::{brighten_frame, cut_bore};
-use crate::perception::circle_fit::{distance, fit_geometric, fit_kasa, raw_roundness};
-use crate::perception::contours::{BorderKind, Contour, find_contours};
+use crate::perception::circle_fit::{fit_geometric, fit_kasa, raw_roundness};
+use crate::perception::contours::{BorderKind, Contour, binned_radii, find_contours};
 use crate::perception::error::PerceptionError;
 use crate::perception::filters::FilterMethod;
 use crate::perception::integer_edges::{canny_points, integer_fit};
@@ -565,37 +565,6 @@ impl BoreDetector {
         }
         Some(CleanArcs { points, bridges })
     }
-}
-
-/// Mean coarse radius per angular bin about `centre`; empty bins interpolated circularly.
-fn binned_radii(points: &[[f64; 2]], centre: [f64; 2], bins: usize, fallback: f64) -> Vec<f64> {
-    let mut sum = vec![0.0f64; bins];
-    let mut count = vec![0u32; bins];
-    for q in points {
-        let (dx, dy) = (q[0] - centre[0], q[1] - centre[1]);
-        let angle = dy.atan2(dx).rem_euclid(TAU);
-        // Truncation of the value plus a half: `round` for these non-negative values, without
-        // a libm call per border point.
-        let bin = ((angle / TAU * bins as f64 + 0.5) as usize) % bins;
-        sum[bin] += distance(dx, dy);
-        count[bin] += 1;
-    }
-    let filled: Vec<usize> = (0..bins).filter(|&i| count[i] > 0).collect();
-    if filled.is_empty() {
-        return vec![fallback; bins];
-    }
-    let value = |i: usize| sum[i] / f64::from(count[i]);
-    let mut radii = vec![0.0; bins];
-    for (k, &i) in filled.iter().enumerate() {
-        let j = filled[(k + 1) % filled.len()];
-        let gap = (j + bins - i) % bins;
-        let gap = if gap == 0 { bins } else { gap };
-        for step in 0..gap {
-            let f = step as f64 / gap as f64;
-            radii[(i + step) % bins] = (1.0 - f) * value(i) + f * value(j);
-        }
-    }
-    radii
 }
 
 /// Order of the robust outline of a hole border: enough for an off-centre origin (1), ellipses
