@@ -44,7 +44,7 @@ pub struct SkippedBore {
     pub reason: SkipReason,
 }
 
-/// Everything [`BoreDetector::detect_report`] found in one image.
+/// Everything [`crate::perception::bore::BoreDetector::detect_report`] found in one image.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct BoreReport {
     /// Measured bores, sorted by `y` then `x`.
