@@ -3,6 +3,7 @@
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 use twincell::perception::calibration::CameraCalibration;
+use twincell::perception::calibration::MeasureOnPlane;
 use twincell::perception::roundness::DEFAULT_MAX_UPR;
 
 use super::{CircleOut, MeasureArgs};
