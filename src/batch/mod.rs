@@ -1,6 +1,7 @@
 //! Batches of sorting trials: the per-trial record, running trials in parallel and
 //! deterministically, streaming them to disk, and the reports built from them.
 
+mod batch_manifest;
 mod batch_plan;
 mod batch_runner;
 mod error;
@@ -9,11 +10,14 @@ mod junit;
 mod merge;
 mod progress_bar;
 mod report;
+mod resume;
 mod trial_record;
 
+pub use batch_manifest::{BatchManifest, MANIFEST_FILE};
 pub use batch_plan::{BatchPlan, Shard, ShardError, trial_seed};
 pub use batch_runner::{
-    BatchSummary, JUNIT_FILE, REPORT_FILE, TRIALS_FILE, run_batch, write_reports,
+    BatchOptions, BatchSummary, JUNIT_FILE, REPORT_FILE, TRIALS_FILE, run_batch, run_batch_with,
+    write_reports,
 };
 pub use error::BatchError;
 pub use interrupt::cancel_on_signals;
@@ -23,6 +27,10 @@ pub use report::{
     AcceptConfusion, BatchReport, CycleTime, ErrorStats, Gate, Metrology, ReportMeta, Sorting,
     StageTiming, StageTimings, StreamSummary, Timing, VerdictCounts, Z95, exit_code, passes_gate,
     wilson_interval,
+};
+pub use resume::{
+    ResumeError, TrialLine, TrialLines, check_prefix, parse_trial_lines, read_manifest,
+    read_trial_lines,
 };
 pub use trial_record::{
     CLEAR_CUT_BAND_MM, DecisionRecord, FailureReason, Outcome, PartRecord, Perception,
