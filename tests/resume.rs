@@ -1,9 +1,6 @@
 //! `twincell run --resume`: a batch killed at any instant continues to the files an
 //! uninterrupted run writes; a directory of another batch or with damaged records is refused.
 
-mod common;
-use common::twincell;
-
 use std::fs;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
@@ -16,6 +13,23 @@ use twincell::batch::{
     TrialRecord, TrialRunner, merge_shards, run_batch, run_batch_with,
 };
 use twincell::rng::SimRng;
+
+/// The binary under test: cargo's, or `TWINCELL_BIN` when set (a copy taken right after the
+/// build, for machines where several checkouts share one target directory and its binary).
+fn bin() -> PathBuf {
+    std::env::var_os("TWINCELL_BIN")
+        .map_or_else(|| PathBuf::from(env!("CARGO_BIN_EXE_twincell")), PathBuf::from)
+}
+
+/// Runs the binary; returns its exit code, stdout and stderr.
+fn twincell(args: &[&str]) -> (i32, String, String) {
+    let output = Command::new(bin()).args(args).output().expect("binary runs");
+    (
+        output.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&output.stdout).into_owned(),
+        String::from_utf8_lossy(&output.stderr).into_owned(),
+    )
+}
 
 fn out_dir(name: &str) -> PathBuf {
     let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
@@ -340,7 +354,7 @@ fn sigkill_at_random_instants_then_resume_gives_the_uninterrupted_files() {
     };
     let whole = out_dir("kill-whole");
     let started = Instant::now();
-    let status = Command::new(env!("CARGO_BIN_EXE_twincell"))
+    let status = Command::new(bin())
         .args(args(&whole, "--out"))
         .stdout(Stdio::null())
         .status()
@@ -357,7 +371,7 @@ fn sigkill_at_random_instants_then_resume_gives_the_uninterrupted_files() {
     for run in 0..20 {
         let dir = out_dir(&format!("kill-{run}"));
         let delay = full.mul_f64(rng.uniform());
-        let mut child = Command::new(env!("CARGO_BIN_EXE_twincell"))
+        let mut child = Command::new(bin())
             .args(args(&dir, "--resume"))
             .stdout(Stdio::null())
             .stderr(Stdio::null())
