@@ -15,8 +15,14 @@ fail() {
 
 started=$SECONDS
 bash scripts/slurm-up.sh
-cargo build --release --locked
-bin="$CARGO_TARGET_DIR/release/twincell"
+# TWINCELL_BIN: test this binary instead of building one (where several checkouts share one
+# target directory, a copy taken right after the build).
+if [ -n "${TWINCELL_BIN:-}" ]; then
+    bin="$TWINCELL_BIN"
+else
+    cargo build --release --locked
+    bin="$CARGO_TARGET_DIR/release/twincell"
+fi
 work=$(mktemp -d /tmp/twincell-slurm.XXXXXX)
 
 echo "slurm-test: unsharded reference run" >&2
