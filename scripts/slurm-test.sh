@@ -26,7 +26,9 @@ fi
 work=$(mktemp -d /tmp/twincell-slurm.XXXXXX)
 
 echo "slurm-test: unsharded reference run" >&2
-"$bin" run scenarios/paper_50.toml --perception oracle --jobs 2 --out "$work/unsharded" >/dev/null
+# The same gate as the merge below, so that report.json compares whole.
+"$bin" run scenarios/paper_50.toml --perception oracle --jobs 2 --min-success 0 \
+    --out "$work/unsharded" >/dev/null
 
 echo "slurm-test: submitting 4 shards and the merge" >&2
 launch=$(SCENARIO=scenarios/paper_50.toml PERCEPTION=oracle SHARDS=4 CPUS_PER_TASK=1 MEM=1G \
