@@ -28,8 +28,12 @@ const OBJECT_STRIDE: u64 = 256;
 const COLOUR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
 const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 const ID_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Uint;
-/// Render-target sizes a renderer keeps before it drops them all and starts again.
-const MAX_TARGET_SIZES: usize = 12;
+/// Render-target sizes a renderer keeps before it drops them all and starts again. Each
+/// area of interest has its own size, and one target with its 4x MSAA colour and depth costs
+/// about 11 MB on a software adapter: a dozen of them per renderer grew a camera batch by some
+/// 0.8 MB a trial, to 480 MB at 200 trials (issue 17). Four hold the frame and the latest
+/// windows; re-creating a target costs far less than rendering into it.
+const MAX_TARGET_SIZES: usize = 4;
 
 /// A directional light.
 #[derive(Debug, Clone, Copy, PartialEq)]
