@@ -35,10 +35,11 @@ echo "seconds,trials,rss_kb,fds,threads" >"$samples"
 pid=$!
 start=$SECONDS
 while kill -0 "$pid" 2>/dev/null; do
+    # Any read may fail while the process starts or ends (no trials file yet, /proc gone).
     rss=$(awk '/^VmRSS:/ {print $2}' "/proc/$pid/status" 2>/dev/null || true)
     threads=$(awk '/^Threads:/ {print $2}' "/proc/$pid/status" 2>/dev/null || true)
-    fds=$(find "/proc/$pid/fd" -mindepth 1 -maxdepth 1 2>/dev/null | wc -l)
-    done_trials=$(cat "$out/batch/trials.jsonl" 2>/dev/null | wc -l)
+    fds=$( (ls "/proc/$pid/fd" 2>/dev/null || true) | wc -l)
+    done_trials=$( (cat "$out/batch/trials.jsonl" 2>/dev/null || true) | wc -l)
     [ -z "$rss" ] || echo "$((SECONDS - start)),$done_trials,$rss,$fds,$threads" >>"$samples"
     sleep 1
 done
