@@ -17,13 +17,18 @@ use twincell::rng::SimRng;
 /// The binary under test: cargo's, or `TWINCELL_BIN` when set (a copy taken right after the
 /// build, for machines where several checkouts share one target directory and its binary).
 fn bin() -> PathBuf {
-    std::env::var_os("TWINCELL_BIN")
-        .map_or_else(|| PathBuf::from(env!("CARGO_BIN_EXE_twincell")), PathBuf::from)
+    std::env::var_os("TWINCELL_BIN").map_or_else(
+        || PathBuf::from(env!("CARGO_BIN_EXE_twincell")),
+        PathBuf::from,
+    )
 }
 
 /// Runs the binary; returns its exit code, stdout and stderr.
 fn twincell(args: &[&str]) -> (i32, String, String) {
-    let output = Command::new(bin()).args(args).output().expect("binary runs");
+    let output = Command::new(bin())
+        .args(args)
+        .output()
+        .expect("binary runs");
     (
         output.status.code().unwrap_or(-1),
         String::from_utf8_lossy(&output.stdout).into_owned(),
