@@ -4,7 +4,11 @@
 //! comparisons) under `target/metrology-frames/`, then, in the same run, has
 //! `benches/opencv_metrology.py` time OpenCV's equivalent stages on exactly those images and
 //! prints the ratio of twincell's whole pipeline to OpenCV's median + adaptive threshold + Canny +
-//! findContours, both timed the same way (median of per-call times).
+//! findContours, both timed the same way (median of per-call times, summed over the frames).
+//!
+//! The timed frames (`timed_NN.png`) are [`TIMED_FRAMES`] scenes drawn over the whole space of
+//! [`twincell::perception::scene_space`] with at least three tubes each: walls thin and thick,
+//! dark and grey belts, noise, stains, dirt, bottles.
 //!
 //! The script runs under the first Python of: `$TWINCELL_OPENCV_PYTHON`, the virtual environment
 //! `~/.cache/twincell/venv` (`python3 -m venv ~/.cache/twincell/venv &&
@@ -21,20 +25,21 @@ use image::GrayImage;
 use twincell::perception::BoreDetector;
 use twincell::perception::contours::{find_contours, find_contours_imageproc};
 use twincell::perception::filters::median_3x3;
+use twincell::perception::scene_space::space_scene;
 use twincell::perception::synthetic::{Difficulty, random_scene};
 use twincell::perception::threshold::adaptive_mean_threshold;
 
 /// Frames written for the accuracy comparison, per size.
 const ACCURACY_FRAMES: u64 = 20;
-/// Seed of the timed frame: a heavy scene (noise, stains, bottles) with several tubes.
-const TIMED_SEED: u64 = 42;
+/// Frames timed per size.
+const TIMED_FRAMES: usize = 8;
 
 fn frames_dir() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("target/metrology-frames")
 }
 
-/// Writes the timed frame and the accuracy set for one size; returns the timed frame.
-fn write_frames(width: u32, height: u32) -> GrayImage {
+/// Writes the timed frames and the accuracy set for one size; returns the timed frames.
+fn write_frames(width: u32, height: u32) -> Vec<GrayImage> {
     let dir = frames_dir().join(format!("{width}x{height}"));
     let _ = std::fs::create_dir_all(&dir);
     for seed in 0..ACCURACY_FRAMES {
@@ -44,12 +49,22 @@ fn write_frames(width: u32, height: u32) -> GrayImage {
         let truth = serde_json::json!({ "circles": scene.truth() });
         let _ = std::fs::write(format!("{}.truth.json", path.display()), truth.to_string());
     }
-    let timed = random_scene(TIMED_SEED, width, height, Difficulty::Heavy);
-    let image = timed.render();
-    let _ = image.save(dir.join("timed.png"));
-    let truth = serde_json::json!({ "circles": timed.truth() });
-    let _ = std::fs::write(dir.join("timed.png.truth.json"), truth.to_string());
-    image
+    let mut frames = Vec::new();
+    let mut seed = 0;
+    while frames.len() < TIMED_FRAMES {
+        let drawn = space_scene(5000 + seed, width, height);
+        seed += 1;
+        if drawn.scene.tubes.len() < 3 {
+            continue;
+        }
+        let image = drawn.scene.render();
+        let path = dir.join(format!("timed_{:02}.png", frames.len()));
+        let _ = image.save(&path);
+        let truth = serde_json::json!({ "circles": drawn.scene.truth() });
+        let _ = std::fs::write(format!("{}.truth.json", path.display()), truth.to_string());
+        frames.push(image);
+    }
+    frames
 }
 
 fn metrology(c: &mut Criterion) {
@@ -63,7 +78,8 @@ fn metrology(c: &mut Criterion) {
         return;
     };
     for (width, height) in [(640u32, 480u32), (1280, 960)] {
-        let image = write_frames(width, height);
+        let frames = write_frames(width, height);
+        let image = frames[0].clone();
         let filtered = median_3x3(&image);
         let binary = adaptive_mean_threshold(&filtered, block_radius_px, delta);
         let contours = find_contours(&binary);
@@ -97,6 +113,13 @@ fn metrology(c: &mut Criterion) {
         });
         group.bench_function("pipeline", |b| {
             b.iter(|| detector.detect(black_box(&image)))
+        });
+        group.bench_function("pipeline_all_timed_frames", |b| {
+            b.iter(|| {
+                for frame in &frames {
+                    black_box(detector.detect(black_box(frame)).ok());
+                }
+            })
         });
         group.bench_function("canny_imageproc", |b| {
             b.iter(|| imageproc::edges::canny(black_box(&filtered), 50.0, 150.0))
@@ -166,14 +189,17 @@ fn compare_with_opencv() {
     );
     for (width, height) in [(640u32, 480u32), (1280, 960)] {
         let size = format!("{width}x{height}");
-        let path = frames_dir().join(&size).join("timed.png");
-        let Ok(image) = image::open(&path).map(|i| i.to_luma8()) else {
-            eprintln!("cannot read {}", path.display());
-            continue;
-        };
-        let ours = median_ms(200, || {
-            black_box(detector.detect(black_box(&image)).ok());
-        });
+        let mut ours = 0.0;
+        for k in 0..TIMED_FRAMES {
+            let path = frames_dir().join(&size).join(format!("timed_{k:02}.png"));
+            let Ok(image) = image::open(&path).map(|i| i.to_luma8()) else {
+                eprintln!("cannot read {}", path.display());
+                continue;
+            };
+            ours += median_ms(200, || {
+                black_box(detector.detect(black_box(&image)).ok());
+            });
+        }
         let timing = &report["sizes"][&size]["timing_ms"];
         for (stage, ms) in timing.as_object().into_iter().flatten() {
             println!(
@@ -185,7 +211,8 @@ fn compare_with_opencv() {
             .as_f64()
             .unwrap_or(f64::NAN);
         println!(
-            "  {size} twincell whole pipeline {ours:8.3} ms; ratio to OpenCV's chain {:.2}",
+            "  {size} twincell whole pipeline {ours:8.3} ms over {TIMED_FRAMES} frames; ratio to \
+             OpenCV's chain {:.2}",
             ours / theirs
         );
         println!(

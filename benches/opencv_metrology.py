@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Times OpenCV's equivalents of the metrology stages on the frames `cargo bench --bench metrology`
-writes (target/metrology-frames/), one thread, and measures the roundness bias of OpenCV's classic
+writes (target/metrology-frames/), one thread, summed over the timed frames (timed_NN.png), and measures the roundness bias of OpenCV's classic
 pipeline (median -> adaptive threshold -> findContours -> least-squares circle on integer contour
 points -> Rmax - Rmin of those points) against the truth sidecars.
 
@@ -99,16 +99,26 @@ def classic_bias(paths):
     return {"truths": truths, "found": found, **{k + "_err_px": float(np.mean(v)) for k, v in errs.items()}}
 
 
+def time_frames(paths):
+    """Stage and chain times summed over the timed frames."""
+    total = {}
+    for path in paths:
+        for stage, ms in time_frame(path).items():
+            total[stage] = total.get(stage, 0.0) + ms
+    return total
+
+
 def main():
     cv2.setNumThreads(1)
     report = {"opencv": cv2.__version__, "threads": cv2.getNumThreads(), "sizes": {}}
     for size in ("640x480", "1280x960"):
         d = os.path.join(FRAMES, size)
-        timed = os.path.join(d, "timed.png")
-        if not os.path.exists(timed):
-            sys.exit(f"{timed}: missing; run `cargo bench --bench metrology` first")
+        timed = sorted(glob.glob(os.path.join(d, "timed_*.png")))
+        if not timed:
+            sys.exit(f"{d}/timed_*.png: missing; run `cargo bench --bench metrology` first")
         report["sizes"][size] = {
-            "timing_ms": time_frame(timed),
+            "frames": len(timed),
+            "timing_ms": time_frames(timed),
             "classic_accuracy": classic_bias(sorted(glob.glob(os.path.join(d, "scene_*.png")))),
         }
     if "--json" in sys.argv:

@@ -18,11 +18,27 @@ pub fn trial_seed(scenario_seed: u64, index: u32) -> u64 {
 
 /// One slice of a scenario's trials: the trials with `trial % count == index`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(try_from = "ShardFields")]
 pub struct Shard {
     /// This shard's number, `0..count`.
     pub index: u32,
     /// How many shards the scenario is split into.
     pub count: u32,
+}
+
+/// A shard as read from JSON, before its range is checked.
+#[derive(Deserialize)]
+struct ShardFields {
+    index: u32,
+    count: u32,
+}
+
+impl TryFrom<ShardFields> for Shard {
+    type Error = ShardError;
+
+    fn try_from(fields: ShardFields) -> Result<Self, Self::Error> {
+        Self::new(fields.index, fields.count)
+    }
 }
 
 /// Why a `--shard I/N` value was refused.
@@ -161,6 +177,17 @@ mod tests {
             plan(Some(Shard { index: 1, count: 3 })).trial_indices(),
             [1, 4, 7]
         );
+    }
+
+    #[test]
+    fn shard_json_is_range_checked() {
+        let ok: Shard = serde_json::from_str(r#"{"index":1,"count":4}"#).expect("valid shard");
+        assert_eq!(ok, Shard { index: 1, count: 4 });
+        // A zero count read from a report once reached `trial % 0` in merge.
+        for bad in [r#"{"index":0,"count":0}"#, r#"{"index":4,"count":4}"#] {
+            let err = serde_json::from_str::<Shard>(bad).expect_err(bad);
+            assert!(err.to_string().contains("need 0 <= I < N"), "{err}");
+        }
     }
 
     #[test]

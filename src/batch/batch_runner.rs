@@ -9,10 +9,12 @@ use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::mpsc;
 use std::time::Instant;
 
+use super::batch_manifest::write_whole;
 use super::progress_bar::ProgressBar;
+use super::resume::open_for_resume;
 use super::{
-    BatchError, BatchPlan, BatchReport, FailureReason, Outcome, ReportMeta, TrialRecord,
-    TrialRunner, junit_xml, trial_seed,
+    BatchError, BatchManifest, BatchPlan, BatchReport, FailureReason, Outcome, ReportMeta,
+    TrialRecord, TrialRunner, junit_xml, trial_seed,
 };
 
 /// File name of the trial records, one JSON object a line.
@@ -42,9 +44,41 @@ impl BatchSummary {
     }
 }
 
+/// How [`run_batch_with`] treats the output directory.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct BatchOptions {
+    /// SHA-256 (hex) of the scenario file, written into `batch.json` so that a resume can
+    /// check it runs the same scenario.
+    pub scenario_sha256: Option<String>,
+    /// Continue the batch already in the directory (`--resume`) instead of starting over.
+    pub resume: bool,
+}
+
 /// Runs the trials of `plan` with `runner` and writes `trials.jsonl`, `report.json` and
-/// `junit.xml` into `out_dir` (created if missing, files replaced).
+/// `junit.xml` into `out_dir` (created if missing, files replaced), as [`run_batch_with`] does
+/// without a scenario hash and without resuming.
+pub fn run_batch(
+    runner: &dyn TrialRunner,
+    plan: &BatchPlan,
+    out_dir: &Path,
+    cancel: &AtomicBool,
+    progress: bool,
+) -> Result<BatchSummary, BatchError> {
+    run_batch_with(
+        runner,
+        plan,
+        &BatchOptions::default(),
+        out_dir,
+        cancel,
+        progress,
+    )
+}
+
+/// Runs the trials of `plan` with `runner` and writes `batch.json`, `trials.jsonl`,
+/// `report.json` and `junit.xml` into `out_dir` (created if missing).
 ///
+/// - First `batch.json` says which batch the directory holds, and reports of an earlier run
+///   are removed, so a directory never pairs old reports with new records.
 /// - Trial `i` gets seed [`trial_seed`]`(plan.scenario_seed, i)`; with a shard, only the
 ///   trials with `i % N == I` run.
 /// - Up to [`BatchPlan::worker_count`] trials run at once. A trial that panics becomes a
@@ -52,13 +86,18 @@ impl BatchSummary {
 /// - Records are appended to `trials.jsonl` in trial order, each as soon as every earlier one
 ///   is written, one `write` per line, so the file is the same for any number of jobs (the
 ///   `timing` fields aside) and a killed batch leaves every finished prefix on disk.
+/// - With `options.resume`, the directory's `batch.json` must equal this run's (else
+///   [`ResumeError::Mismatch`](super::ResumeError)); its complete records are kept, a torn
+///   last line is dropped, and only the missing trials run. The files end as an uninterrupted
+///   run's would (timing aside). A directory without records is started afresh.
 /// - `timing.wall_ms` of each record is set here to the trial's measured wall time.
 /// - Once `cancel` is set no further trial starts; the running ones finish and are written,
 ///   and the reports cover them with `"interrupted": true`.
 /// - `progress` asks for a progress bar on stderr; it is drawn only when stderr is a terminal.
-pub fn run_batch(
+pub fn run_batch_with(
     runner: &dyn TrialRunner,
     plan: &BatchPlan,
+    options: &BatchOptions,
     out_dir: &Path,
     cancel: &AtomicBool,
     progress: bool,
@@ -74,18 +113,27 @@ pub fn run_batch(
         source,
     })?;
     let trials_path = out_dir.join(TRIALS_FILE);
-    let mut trials_file = File::create(&trials_path).map_err(|source| BatchError::Write {
-        path: trials_path.clone(),
-        source,
-    })?;
-
+    let manifest = BatchManifest::of(plan, options.scenario_sha256.clone());
     let indices = plan.trial_indices();
-    let jobs = plan.worker_count(indices.len());
-    let mut bar = ProgressBar::new(indices.len(), progress);
-    let records = run_in_order(
+    let (mut records, mut trials_file) = if options.resume {
+        open_for_resume(out_dir, &manifest, &indices)?
+    } else {
+        manifest.write(out_dir)?;
+        let file = File::create(&trials_path).map_err(|source| BatchError::Write {
+            path: trials_path.clone(),
+            source,
+        })?;
+        (Vec::new(), file)
+    };
+    remove_reports(out_dir)?;
+
+    let pending = indices.get(records.len()..).unwrap_or_default();
+    let jobs = plan.worker_count(pending.len());
+    let mut bar = ProgressBar::new(pending.len(), progress);
+    let new_records = run_in_order(
         runner,
         plan.scenario_seed,
-        &indices,
+        pending,
         jobs,
         cancel,
         |record| {
@@ -104,6 +152,7 @@ pub fn run_batch(
         &mut bar,
     )?;
     bar.finish();
+    records.extend(new_records);
 
     let meta = ReportMeta {
         scenario: plan.scenario_name.clone(),
@@ -126,6 +175,19 @@ pub fn run_batch(
     })
 }
 
+/// Removes `report.json` and `junit.xml` of an earlier run, if any.
+fn remove_reports(out_dir: &Path) -> Result<(), BatchError> {
+    for name in [REPORT_FILE, JUNIT_FILE] {
+        let path = out_dir.join(name);
+        match fs::remove_file(&path) {
+            Ok(()) => {}
+            Err(err) if err.kind() == std::io::ErrorKind::NotFound => {}
+            Err(source) => return Err(BatchError::Write { path, source }),
+        }
+    }
+    Ok(())
+}
+
 /// Writes `report.json` and `junit.xml` for `records` into `out_dir`; returns their paths.
 pub fn write_reports(
     out_dir: &Path,
@@ -138,15 +200,9 @@ pub fn write_reports(
         source,
     })?;
     json.push('\n');
-    fs::write(&report_path, json).map_err(|source| BatchError::Write {
-        path: report_path.clone(),
-        source,
-    })?;
+    write_whole(&report_path, json.as_bytes())?;
     let junit_path = out_dir.join(JUNIT_FILE);
-    fs::write(&junit_path, junit_xml(report, records)).map_err(|source| BatchError::Write {
-        path: junit_path.clone(),
-        source,
-    })?;
+    write_whole(&junit_path, junit_xml(report, records).as_bytes())?;
     Ok((report_path, junit_path))
 }
 

@@ -50,4 +50,15 @@ pub enum BatchError {
         /// The cause.
         source: io::Error,
     },
+    /// The output directory cannot be resumed (`--resume`): another batch, or damaged files.
+    #[error(transparent)]
+    Resume(#[from] super::ResumeError),
+}
+
+impl BatchError {
+    /// Whether the fault lies in the user's input (exit code 2): a directory that cannot be
+    /// resumed, a gate out of range.
+    pub fn is_bad_input(&self) -> bool {
+        matches!(self, Self::Resume(_) | Self::MinSuccess { .. })
+    }
 }

@@ -8,8 +8,8 @@ use std::path::{Path, PathBuf};
 use serde::Deserialize;
 
 use super::{
-    BatchError, BatchReport, Perception, REPORT_FILE, ReportMeta, Shard, TRIALS_FILE, TrialRecord,
-    trial_seed, write_reports,
+    BatchError, BatchReport, MANIFEST_FILE, Perception, REPORT_FILE, ReportMeta, ResumeError,
+    Shard, TRIALS_FILE, TrialRecord, parse_trial_lines, read_manifest, trial_seed, write_reports,
 };
 
 /// Why shard outputs could not be merged.
@@ -84,6 +84,15 @@ pub enum MergeError {
         /// The `trials.jsonl` that had it first.
         first: PathBuf,
     },
+    /// A shard has neither `report.json` nor `batch.json`.
+    #[error("no report.json or batch.json: not a shard's output directory: {}", dir.display())]
+    NotAShard {
+        /// The directory.
+        dir: PathBuf,
+    },
+    /// A shard's `batch.json` (read when it left no report) is malformed.
+    #[error(transparent)]
+    Manifest(ResumeError),
     /// The merged files could not be written.
     #[error(transparent)]
     Output(#[from] BatchError),
@@ -122,13 +131,6 @@ pub struct MergeSummary {
     pub junit_path: PathBuf,
 }
 
-fn read(path: &Path) -> Result<String, MergeError> {
-    fs::read_to_string(path).map_err(|source| MergeError::Read {
-        path: path.to_path_buf(),
-        source,
-    })
-}
-
 fn check_same(
     path: &Path,
     first: &Path,
@@ -148,6 +150,53 @@ fn check_same(
     })
 }
 
+/// Trials of a scenario of `trials` trials that lie in `shard`.
+fn shard_trial_count(trials: u32, shard: Option<Shard>) -> u32 {
+    match shard {
+        None => trials,
+        Some(s) if s.index < trials => (trials - 1 - s.index) / s.count + 1,
+        Some(_) => 0,
+    }
+}
+
+/// The header of the shard in `dir`: from its `report.json`, or, for a shard killed before
+/// it wrote one, from its `batch.json` (and then interrupted unless every trial is there;
+/// `complete` is set once the records are counted).
+fn shard_header(dir: &Path) -> Result<(PathBuf, ShardHeader, bool), MergeError> {
+    let report_path = dir.join(REPORT_FILE);
+    match fs::read(&report_path) {
+        Ok(bytes) => {
+            let header =
+                serde_json::from_slice(&bytes).map_err(|source| MergeError::MalformedReport {
+                    path: report_path.clone(),
+                    source,
+                })?;
+            Ok((report_path, header, true))
+        }
+        Err(err) if err.kind() == io::ErrorKind::NotFound => {
+            let manifest = read_manifest(dir).map_err(MergeError::Manifest)?;
+            let Some(manifest) = manifest else {
+                return Err(MergeError::NotAShard {
+                    dir: dir.to_path_buf(),
+                });
+            };
+            let header = ShardHeader {
+                scenario: manifest.scenario,
+                seed: manifest.seed,
+                perception: manifest.perception,
+                scenario_trials: manifest.scenario_trials,
+                shard: manifest.shard,
+                interrupted: false,
+            };
+            Ok((dir.join(MANIFEST_FILE), header, false))
+        }
+        Err(source) => Err(MergeError::Read {
+            path: report_path,
+            source,
+        }),
+    }
+}
+
 /// One record of a shard, with the exact line it was read from.
 struct ShardLine {
     path: PathBuf,
@@ -163,6 +212,9 @@ struct ShardLine {
 /// All shards must share scenario, seed, perception, trial count and shard count; every record
 /// must carry its derived seed, lie in its shard, and appear in only one shard. A shard that
 /// was interrupted makes the merged report interrupted; `min_success` sets its gate.
+///
+/// A shard killed before it wrote `report.json` is read as `--resume` reads it: its header
+/// comes from `batch.json`, a torn last line is dropped, and its complete records count.
 pub fn merge_shards(
     dirs: &[PathBuf],
     out_dir: &Path,
@@ -177,13 +229,7 @@ pub fn merge_shards(
     let mut interrupted = false;
     let mut by_trial: BTreeMap<u32, ShardLine> = BTreeMap::new();
     for dir in dirs {
-        let report_path = dir.join(REPORT_FILE);
-        let header: ShardHeader = serde_json::from_str(&read(&report_path)?).map_err(|source| {
-            MergeError::MalformedReport {
-                path: report_path.clone(),
-                source,
-            }
-        })?;
+        let (report_path, header, has_report) = shard_header(dir)?;
         let (first_path, expected) =
             first.get_or_insert_with(|| (report_path.clone(), header.clone()));
         let same = |field: &'static str, expected: String, found: String| {
@@ -210,18 +256,32 @@ pub fn merge_shards(
                 .map_or_else(|| "none".to_owned(), |s| s.count.to_string())
         };
         same("shard.count", shard_count(expected), shard_count(&header))?;
-        interrupted |= header.interrupted;
-
         let trials_path = dir.join(TRIALS_FILE);
-        let text = read(&trials_path)?;
-        for (line_index, line) in text.lines().enumerate() {
-            let line_no = line_index + 1;
-            let record: TrialRecord =
-                serde_json::from_str(line).map_err(|source| MergeError::MalformedLine {
-                    path: trials_path.clone(),
-                    line: line_no,
+        let bytes = match fs::read(&trials_path) {
+            Ok(bytes) => bytes,
+            // Killed between writing batch.json and its first record.
+            Err(err) if !has_report && err.kind() == io::ErrorKind::NotFound => Vec::new(),
+            Err(source) => {
+                return Err(MergeError::Read {
+                    path: trials_path,
                     source,
-                })?;
+                });
+            }
+        };
+        let lines = parse_trial_lines(&trials_path, &bytes).map_err(|err| match err {
+            ResumeError::MalformedLine { path, line, source } => {
+                MergeError::MalformedLine { path, line, source }
+            }
+            other => MergeError::Manifest(other),
+        })?;
+        // A shard killed before its report (no report.json, or a torn last line) is
+        // interrupted unless every one of its trials made it to disk.
+        let all_there = u32::try_from(lines.lines.len())
+            .is_ok_and(|n| n >= shard_trial_count(header.scenario_trials, header.shard));
+        interrupted |= header.interrupted || (!has_report && !all_there) || lines.torn_tail;
+        for (line_index, shard_line) in lines.lines.into_iter().enumerate() {
+            let line_no = line_index + 1;
+            let record = shard_line.record;
             let foreign = |field, reason: String| MergeError::ForeignRecord {
                 path: trials_path.clone(),
                 line: line_no,
@@ -265,7 +325,7 @@ pub fn merge_shards(
                 record.trial,
                 ShardLine {
                     path: trials_path.clone(),
-                    line: line.to_owned(),
+                    line: shard_line.text,
                     record,
                 },
             );

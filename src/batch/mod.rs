@@ -1,6 +1,7 @@
 //! Batches of sorting trials: running trials in parallel and deterministically, streaming their
 //! records (`crate::outcome`) to disk, and the reports built from them.
 
+mod batch_manifest;
 mod batch_plan;
 mod batch_runner;
 mod error;
@@ -12,6 +13,7 @@ mod progress_bar;
 mod report;
 #[cfg(test)]
 mod report_tests;
+mod resume;
 mod suite;
 mod summary_table;
 mod sweep;
@@ -20,9 +22,12 @@ pub use crate::outcome::{
     DecisionRecord, FailureReason, Outcome, PartRecord, Perception, StreamPartRecord, StreamRecord,
     TrialRecord, TrialRunner, TrialTiming,
 };
+
+pub use batch_manifest::{BatchManifest, MANIFEST_FILE};
 pub use batch_plan::{BatchPlan, Shard, ShardError, trial_seed};
 pub use batch_runner::{
-    BatchSummary, JUNIT_FILE, REPORT_FILE, TRIALS_FILE, run_batch, write_reports,
+    BatchOptions, BatchSummary, JUNIT_FILE, REPORT_FILE, TRIALS_FILE, run_batch, run_batch_with,
+    write_reports,
 };
 pub use error::BatchError;
 pub use html::{HTML_FILE, HtmlError, HtmlPage, successful_cycle_times};
@@ -33,6 +38,10 @@ pub use report::{
     AcceptConfusion, BandCounts, BatchReport, CycleTime, ErrorStats, Gate, Metrology, ReportMeta,
     Sorting, StageTiming, StageTimings, StreamSummary, Timing, VerdictCounts, Z95, exit_code,
     passes_gate, wilson_interval,
+};
+pub use resume::{
+    ResumeError, TrialLine, TrialLines, check_prefix, parse_trial_lines, read_manifest,
+    read_trial_lines,
 };
 pub use suite::{BatchRow, SuiteReport, write_json_report};
 pub use sweep::{SweepAxisReport, SweepPoint, SweepReport};

@@ -5,6 +5,22 @@
 //! fitted centre; `ms` is the pipeline's time on that image (decoding excluded, one thread).
 //! Each circle also carries its one-sigma uncertainties `sigma_c`, `sigma_r`, `sigma_roundness`.
 //!
+//! Bores cut by the image border are never fitted as whole: each image lists them under
+//! `skipped` (`cx`, `cy`, `r` of the visible arc's circle, `visible_share`, `reason`).
+//!
+//! Millimetres: `--px-per-mm S` (a telecentric or fronto-parallel view: `cx_mm = cx / S` in the
+//! image frame), or `--calibration FILE` (the camera JSON `twincell render` writes: its
+//! `calibration` object, or such an object alone) with `--plane-height-m H` (the end faces'
+//! height in that camera's world; the edge points are back-projected onto that plane and fitted
+//! there: `cx_mm`, `cy_mm` in the world frame). Each circle then carries `r_mm`,
+//! `roundness_mm`, `cx_mm`, `cy_mm` and `sigma_roundness_mm`. With `--tolerance-mm T` it also
+//! carries a `verdict` on its roundness against `T`: `conforming` when `roundness + band <= T`,
+//! `not_conforming` when `roundness - band > T`, `undecided` in between (ISO 14253-1's decision
+//! rule with a guard band). The band is `--guard-band-mm G` when given; by default, per circle,
+//! twice the combined standard uncertainty `sqrt(sigma_roundness^2 + u_model^2)`, where
+//! `u_model` = [`millimetres::ROUNDNESS_MODEL_UNCERTAINTY_PX`] pixels is the detector's roundness error on
+//! the synthetic suite (`tests/metrology_space.rs`), converted to mm at the circle's scale.
+//!
 //! An image that cannot be read does not stop the others: its entry is `{"file":F,"error":WHY}`,
 //! the reason also goes to stderr naming the file, and the process exits with code 2 after
 //! printing every result.
@@ -17,28 +33,45 @@
 //! `IMAGE.truth.json` holding `{"circles":[...]}` next to each image. A detection matches a truth
 //! circle when their centres are closer than 0.3 r.
 
-use std::collections::BTreeMap;
+mod compare;
+mod millimetres;
+
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
 
-use anyhow::Context;
 use image::GrayImage;
-use serde::{Deserialize, Serialize};
-use twincell::perception::bore::{BoreDetector, BoreDetectorParams, EdgeMode};
-use twincell::perception::filters::FilterMethod;
-use twincell::perception::synthetic::TruthCircle;
-use twincell::perception::threshold::ThresholdMethod;
+use serde::Serialize;
+use twincell::perception::bore::{BoreDetector, SkippedBore};
 
 use crate::cli::{BadInput, EXIT_BAD_INPUT};
+use millimetres::{Scale, circle_out, positive, scale_of};
 
 /// Arguments of `twincell measure`.
 #[derive(Debug, clap::Args)]
 pub struct MeasureArgs {
-    /// Images to measure (PNG, grey or colour; colour is converted to luma).
+    /// Images to measure: PNG (8 or 16 bit, grey, RGB, RGBA), JPEG, BMP or TIFF; colour is
+    /// converted to luma.
     #[arg(required = true)]
     pub images: Vec<PathBuf>,
+    /// Image scale on the end faces, pixels per millimetre: adds `*_mm` fields.
+    #[arg(long, value_name = "S", conflicts_with = "calibration")]
+    pub px_per_mm: Option<f64>,
+    /// Camera JSON as `twincell render` writes it (`shot.json`): adds `*_mm` fields measured on
+    /// the end-face plane; needs --plane-height-m.
+    #[arg(long, value_name = "FILE", requires = "plane_height_m")]
+    pub calibration: Option<PathBuf>,
+    /// Height of the tubes' end faces in the calibration's world frame, metres.
+    #[arg(long, value_name = "H", requires = "calibration")]
+    pub plane_height_m: Option<f64>,
+    /// Roundness tolerance, mm: adds a conformity `verdict` to each circle.
+    #[arg(long, value_name = "T")]
+    pub tolerance_mm: Option<f64>,
+    /// Half-width of the undecided band around the tolerance, mm (default: twice each circle's
+    /// combined roundness uncertainty).
+    #[arg(long, value_name = "G", requires = "tolerance_mm")]
+    pub guard_band_mm: Option<f64>,
     /// Print JSON on stdout.
     #[arg(long)]
     pub json: bool,
@@ -60,6 +93,30 @@ struct CircleOut {
     sigma_c: f64,
     sigma_r: f64,
     sigma_roundness: f64,
+    #[serde(flatten, skip_serializing_if = "Option::is_none")]
+    mm: Option<millimetres::CircleMm>,
+}
+
+/// A bore seen but not measured.
+#[derive(Debug, Serialize)]
+struct SkippedOut {
+    cx: f64,
+    cy: f64,
+    r: f64,
+    visible_share: f64,
+    reason: &'static str,
+}
+
+impl From<&SkippedBore> for SkippedOut {
+    fn from(s: &SkippedBore) -> Self {
+        Self {
+            cx: s.centre_px[0],
+            cy: s.centre_px[1],
+            r: s.radius_px,
+            visible_share: s.visible_share,
+            reason: s.reason.describe(),
+        }
+    }
 }
 
 /// One image of the contract: circles and time, or an error.
@@ -68,6 +125,8 @@ struct ImageOut {
     file: String,
     #[serde(skip_serializing_if = "Option::is_none")]
     circles: Option<Vec<CircleOut>>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    skipped: Option<Vec<SkippedOut>>,
     #[serde(skip_serializing_if = "Option::is_none")]
     ms: Option<f64>,
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -82,35 +141,53 @@ struct MeasureOut {
 /// Runs `twincell measure`.
 pub fn run(args: &MeasureArgs) -> anyhow::Result<ExitCode> {
     if args.compare {
-        return run_compare(args);
+        return compare::run_compare(args);
+    }
+    let scale = scale_of(args)?;
+    if let Some(t) = args.tolerance_mm {
+        if scale.is_none() {
+            return Err(BadInput(
+                "--tolerance-mm needs a scale: --px-per-mm or --calibration".to_string(),
+            )
+            .into());
+        }
+        positive("--tolerance-mm", t)?;
+    }
+    if let Some(g) = args.guard_band_mm
+        && !(g.is_finite() && g >= 0.0)
+    {
+        return Err(BadInput(format!("--guard-band-mm: {g} is not a length >= 0")).into());
     }
     let detector = BoreDetector::default();
     let mut images = Vec::with_capacity(args.images.len());
     let mut any_bad = false;
     for path in &args.images {
         let file = path.display().to_string();
-        let entry = match load_gray(path) {
-            Ok(image) => match time_detect(&detector, &image) {
-                Ok((bores, ms)) => ImageOut {
-                    file,
-                    circles: Some(
-                        bores
-                            .iter()
-                            .map(|b| CircleOut {
-                                cx: b.centre_px[0],
-                                cy: b.centre_px[1],
-                                r: b.radius_px,
-                                roundness: b.roundness_px,
-                                sigma_c: b.centre_sigma_px,
-                                sigma_r: b.radius_sigma_px,
-                                sigma_roundness: b.roundness_sigma_px,
-                            })
-                            .collect(),
-                    ),
-                    ms: Some(ms),
-                    error: None,
-                },
-                Err(reason) => bad_entry(file, reason, &mut any_bad),
+        let measured = load_gray(path).and_then(|image| {
+            if let Some(Scale::Camera(_, w, h)) = scale
+                && image.dimensions() != (w, h)
+            {
+                return Err(format!(
+                    "image is {}x{} px but the calibration's width_px x height_px is {w}x{h}",
+                    image.width(),
+                    image.height()
+                ));
+            }
+            time_detect(&detector, &image)
+        });
+        let entry = match measured {
+            Ok((report, ms)) => ImageOut {
+                file,
+                circles: Some(
+                    report
+                        .bores
+                        .iter()
+                        .map(|b| circle_out(b, scale, args))
+                        .collect(),
+                ),
+                skipped: Some(report.skipped.iter().map(SkippedOut::from).collect()),
+                ms: Some(ms),
+                error: None,
             },
             Err(reason) => bad_entry(file, reason, &mut any_bad),
         };
@@ -138,6 +215,26 @@ pub fn run(args: &MeasureArgs) -> anyhow::Result<ExitCode> {
                              roundness {:.3} +-{:.3} px",
                             c.cx, c.cy, c.sigma_c, c.r, c.sigma_r, c.roundness, c.sigma_roundness
                         )?;
+                        if let Some(mm) = &c.mm {
+                            write!(
+                                stdout,
+                                "    centre ({:.4}, {:.4}) mm  r {:.4} mm  roundness {:.4} mm",
+                                mm.cx_mm, mm.cy_mm, mm.r_mm, mm.roundness_mm
+                            )?;
+                            match (mm.verdict, mm.guard_band_mm) {
+                                (Some(v), Some(g)) => {
+                                    writeln!(stdout, "  {} (band {g:.4} mm)", v.name())?
+                                }
+                                _ => writeln!(stdout)?,
+                            }
+                        }
+                    }
+                    for s in image.skipped.iter().flatten() {
+                        writeln!(
+                            stdout,
+                            "  skipped near ({:.1}, {:.1}) r ~{:.1} px: {}",
+                            s.cx, s.cy, s.r, s.reason
+                        )?;
                     }
                 }
                 _ => writeln!(
@@ -163,227 +260,23 @@ fn bad_entry(file: String, reason: String, any_bad: &mut bool) -> ImageOut {
     ImageOut {
         file,
         circles: None,
+        skipped: None,
         ms: None,
         error: Some(reason),
     }
 }
 
-fn load_gray(path: &Path) -> Result<GrayImage, String> {
+pub(super) fn load_gray(path: &Path) -> Result<GrayImage, String> {
     image::open(path)
         .map(|i| i.to_luma8())
         .map_err(|e| format!("cannot read image: {e}"))
 }
 
-fn time_detect(
+pub(super) fn time_detect(
     detector: &BoreDetector,
     image: &GrayImage,
-) -> Result<(Vec<twincell::perception::Bore>, f64), String> {
+) -> Result<(twincell::perception::BoreReport, f64), String> {
     let start = Instant::now();
-    let bores = detector.detect(image).map_err(|e| e.to_string())?;
-    Ok((bores, start.elapsed().as_secs_f64() * 1e3))
-}
-
-/// Truth file: the measure output schema.
-#[derive(Debug, Deserialize)]
-struct TruthFile {
-    images: Vec<TruthImage>,
-}
-
-#[derive(Debug, Deserialize)]
-struct TruthImage {
-    file: String,
-    circles: Vec<TruthCircle>,
-}
-
-/// Sidecar truth: `IMAGE.truth.json`.
-#[derive(Debug, Deserialize)]
-struct TruthSidecar {
-    circles: Vec<TruthCircle>,
-}
-
-/// Scores of one pipeline variant over all images.
-#[derive(Debug, Serialize)]
-struct VariantScore {
-    filter: &'static str,
-    threshold: &'static str,
-    edges: &'static str,
-    truths: usize,
-    found: usize,
-    false_positives: usize,
-    centre_err_px: f64,
-    radius_err_px: f64,
-    roundness_err_px: f64,
-    roundness_err_max_px: f64,
-    ms: f64,
-}
-
-/// The paper's alternatives, then its classic integer pipelines.
-fn variants() -> Vec<BoreDetectorParams> {
-    let base = BoreDetectorParams::default();
-    let filters = [
-        FilterMethod::Mean { radius_px: 1 },
-        FilterMethod::Median { radius_px: 1 },
-        FilterMethod::Gaussian { sigma_px: 1.0 },
-    ];
-    let thresholds = [
-        base.threshold,
-        ThresholdMethod::Otsu,
-        ThresholdMethod::Isodata,
-    ];
-    let mut out: Vec<BoreDetectorParams> = filters
-        .iter()
-        .flat_map(|&filter| {
-            thresholds.iter().map(move |&threshold| BoreDetectorParams {
-                filter,
-                threshold,
-                ..base
-            })
-        })
-        .collect();
-    for edge_mode in [EdgeMode::IntegerContour, EdgeMode::Canny] {
-        out.push(BoreDetectorParams { edge_mode, ..base });
-    }
-    out
-}
-
-fn load_truth(args: &MeasureArgs) -> anyhow::Result<Vec<Vec<TruthCircle>>> {
-    let by_file: Option<BTreeMap<String, Vec<TruthCircle>>> = match &args.truth {
-        Some(path) => {
-            let text = std::fs::read_to_string(path)
-                .map_err(|e| BadInput(format!("{}: cannot read truth: {e}", path.display())))?;
-            let file: TruthFile = serde_json::from_str(&text)
-                .map_err(|e| BadInput(format!("{}: bad truth JSON: {e}", path.display())))?;
-            Some(
-                file.images
-                    .into_iter()
-                    .map(|i| (i.file, i.circles))
-                    .collect(),
-            )
-        }
-        None => None,
-    };
-    args.images
-        .iter()
-        .map(|image| {
-            let shown = image.display().to_string();
-            if let Some(map) = &by_file {
-                let name = image
-                    .file_name()
-                    .map(|n| n.to_string_lossy().into_owned())
-                    .unwrap_or_default();
-                let found = map.get(&shown).or_else(|| {
-                    map.iter()
-                        .find(|(k, _)| Path::new(k).file_name().is_some_and(|f| *f == *name))
-                        .map(|(_, v)| v)
-                });
-                return found.cloned().ok_or_else(|| {
-                    BadInput(format!(
-                        "{shown}: key `images[].file`: no truth for this image"
-                    ))
-                    .into()
-                });
-            }
-            let sidecar = PathBuf::from(format!("{shown}.truth.json"));
-            let text = std::fs::read_to_string(&sidecar).map_err(|e| {
-                BadInput(format!(
-                    "{}: cannot read truth sidecar: {e}",
-                    sidecar.display()
-                ))
-            })?;
-            let parsed: TruthSidecar = serde_json::from_str(&text)
-                .map_err(|e| BadInput(format!("{}: bad truth JSON: {e}", sidecar.display())))?;
-            Ok(parsed.circles)
-        })
-        .collect()
-}
-
-fn run_compare(args: &MeasureArgs) -> anyhow::Result<ExitCode> {
-    let truths = load_truth(args)?;
-    let images = args
-        .images
-        .iter()
-        .map(|p| load_gray(p).map_err(|e| BadInput(format!("{}: {e}", p.display()))))
-        .collect::<Result<Vec<_>, _>>()?;
-    let mut scores = Vec::new();
-    for params in variants() {
-        let detector = BoreDetector::new(params);
-        let (mut centre, mut radius, mut roundness) = (Vec::new(), Vec::new(), Vec::new());
-        let (mut truth_count, mut false_positives, mut total_ms) = (0, 0, 0.0);
-        for (image, truth) in images.iter().zip(&truths) {
-            let (bores, ms) = time_detect(&detector, image).map_err(BadInput)?;
-            total_ms += ms;
-            truth_count += truth.len();
-            let matches = |b: &twincell::perception::Bore, t: &TruthCircle| {
-                (b.centre_px[0] - t.cx).hypot(b.centre_px[1] - t.cy) < 0.3 * t.r
-            };
-            for t in truth {
-                if let Some(b) = bores.iter().find(|b| matches(b, t)) {
-                    centre.push((b.centre_px[0] - t.cx).hypot(b.centre_px[1] - t.cy));
-                    radius.push((b.radius_px - t.r).abs());
-                    roundness.push((b.roundness_px - t.roundness).abs());
-                }
-            }
-            false_positives += bores
-                .iter()
-                .filter(|b| !truth.iter().any(|t| matches(b, t)))
-                .count();
-        }
-        let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
-        scores.push(VariantScore {
-            filter: params.filter.name(),
-            threshold: params.threshold.name(),
-            edges: params.edge_mode.name(),
-            truths: truth_count,
-            found: centre.len(),
-            false_positives,
-            centre_err_px: mean(&centre),
-            radius_err_px: mean(&radius),
-            roundness_err_px: mean(&roundness),
-            roundness_err_max_px: roundness.iter().copied().fold(0.0, f64::max),
-            ms: total_ms / images.len().max(1) as f64,
-        });
-    }
-    let mut stdout = std::io::stdout().lock();
-    if args.json {
-        serde_json::to_writer(&mut stdout, &serde_json::json!({ "variants": scores }))?;
-        writeln!(stdout)?;
-        return Ok(ExitCode::SUCCESS);
-    }
-    writeln!(
-        stdout,
-        "{:<9} {:<14} {:<16} {:>9} {:>4} {:>9} {:>9} {:>10} {:>10} {:>7}",
-        "filter",
-        "threshold",
-        "edges",
-        "recall",
-        "fp",
-        "centre",
-        "radius",
-        "roundness",
-        "rnd max",
-        "ms"
-    )?;
-    for s in &scores {
-        writeln!(
-            stdout,
-            "{:<9} {:<14} {:<16} {:>4}/{:<4} {:>4} {:>9.3} {:>9.3} {:>10.3} {:>10.3} {:>7.2}",
-            s.filter,
-            s.threshold,
-            s.edges,
-            s.found,
-            s.truths,
-            s.false_positives,
-            s.centre_err_px,
-            s.radius_err_px,
-            s.roundness_err_px,
-            s.roundness_err_max_px,
-            s.ms
-        )?;
-    }
-    writeln!(
-        stdout,
-        "(mean absolute errors in px over matched bores; ms per image)"
-    )
-    .context("writing the table")?;
-    Ok(ExitCode::SUCCESS)
+    let report = detector.detect_report(image).map_err(|e| e.to_string())?;
+    Ok((report, start.elapsed().as_secs_f64() * 1e3))
 }

@@ -1,13 +1,16 @@
 //! `twincell run`: a scenario's trials as a headless batch.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 
 use anyhow::Result;
 use clap::Args;
-use twincell::batch::{BatchPlan, BatchSummary, Perception, Shard, cancel_on_signals, run_batch};
+use sha2::{Digest, Sha256};
+use twincell::batch::{
+    BatchOptions, BatchPlan, BatchSummary, Perception, Shard, cancel_on_signals, run_batch_with,
+};
 #[cfg(feature = "record")]
 use twincell::record::{DEFAULT_VIEWER_ADDR, RerunRecorder};
 use twincell::scenario::{Override, Scenario};
@@ -33,6 +36,11 @@ pub struct RunArgs {
     /// Output directory for trials.jsonl, report.json and junit.xml.
     #[arg(long, value_name = "DIR", default_value = "out")]
     out: PathBuf,
+    /// Continue the batch a killed run left in DIR (its output directory): keep its finished
+    /// trials and run the rest. DIR must hold the same scenario file, seed, perception, trial
+    /// count and shard (exit 2 otherwise); an empty or missing DIR starts the batch there.
+    #[arg(long, value_name = "DIR", conflicts_with = "out")]
+    resume: Option<PathBuf>,
     /// Worker threads (default: all cores).
     #[arg(long)]
     jobs: Option<usize>,
@@ -68,9 +76,27 @@ pub fn run(args: &RunArgs) -> Result<ExitCode> {
         println!("{}", serde_json::to_string_pretty(&summary.report)?);
     } else {
         print!("{}", summary.report.summary_table());
-        println!("results in {}", args.out.display());
+        println!("results in {}", args.out_dir().display());
     }
     Ok(ExitCode::from(summary.exit_code()))
+}
+
+impl RunArgs {
+    /// Where the batch's files go: the `--resume` directory or `--out`.
+    pub fn out_dir(&self) -> &Path {
+        self.resume.as_deref().unwrap_or(&self.out)
+    }
+}
+
+/// SHA-256 (hex) of the scenario file at `path` followed by the `--set` overrides.
+fn scenario_sha256(path: &Path, overrides: &[Override]) -> Result<String> {
+    let mut bytes = std::fs::read(path)
+        .map_err(|e| BadInput(format!("cannot read: {e}: {}", path.display())))?;
+    // A batch run with `--set` overrides is a different scenario from the file alone.
+    for o in overrides {
+        bytes.extend_from_slice(format!("\n--set {o}").as_bytes());
+    }
+    Ok(format!("{:x}", Sha256::digest(&bytes)))
 }
 
 /// Loads the scenario, applies the overrides and runs the batch (with a progress bar when
@@ -112,8 +138,19 @@ pub fn run_scenario(args: &RunArgs, progress: bool) -> Result<BatchSummary> {
     }
     let cancel = Arc::new(AtomicBool::new(false));
     cancel_on_signals(&cancel)?;
-    let summary = run_batch(&runner, &plan, &args.out, &cancel, progress)?;
-    twincell::batch::HtmlPage::for_batch(&summary.report, &args.out)?.write(&args.out)?;
+    let options = BatchOptions {
+        scenario_sha256: Some(scenario_sha256(&args.scenario, &args.set)?),
+        resume: args.resume.is_some(),
+    };
+    let summary = run_batch_with(&runner, &plan, &options, args.out_dir(), &cancel, progress)
+        .map_err(|e| {
+            if e.is_bad_input() {
+                anyhow::Error::new(BadInput(e.to_string()))
+            } else {
+                e.into()
+            }
+        })?;
+    twincell::batch::HtmlPage::for_batch(&summary.report, args.out_dir())?.write(args.out_dir())?;
     #[cfg(feature = "record")]
     if let Some(recorder) = recorder {
         recorder.finish()?;

@@ -4,7 +4,9 @@
 //! A hole border surrounds a dark region that is fully enclosed by bright pixels: exactly the
 //! "dark bore inside a bright rim" shape the bore detector looks for.
 
+use crate::perception::circle_fit::distance;
 use image::GrayImage;
+use std::f64::consts::TAU;
 
 /// Whether a border surrounds a bright region from outside or a dark hole inside one.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -239,6 +241,42 @@ pub fn find_contours_imageproc(binary: &GrayImage) -> Vec<Contour> {
             parent: c.parent,
         })
         .collect()
+}
+
+/// Mean coarse radius per angular bin about `centre`; empty bins interpolated circularly.
+pub(crate) fn binned_radii(
+    points: &[[f64; 2]],
+    centre: [f64; 2],
+    bins: usize,
+    fallback: f64,
+) -> Vec<f64> {
+    let mut sum = vec![0.0f64; bins];
+    let mut count = vec![0u32; bins];
+    for q in points {
+        let (dx, dy) = (q[0] - centre[0], q[1] - centre[1]);
+        let angle = dy.atan2(dx).rem_euclid(TAU);
+        // Truncation of the value plus a half: `round` for these non-negative values, without
+        // a libm call per border point.
+        let bin = ((angle / TAU * bins as f64 + 0.5) as usize) % bins;
+        sum[bin] += distance(dx, dy);
+        count[bin] += 1;
+    }
+    let filled: Vec<usize> = (0..bins).filter(|&i| count[i] > 0).collect();
+    if filled.is_empty() {
+        return vec![fallback; bins];
+    }
+    let value = |i: usize| sum[i] / f64::from(count[i]);
+    let mut radii = vec![0.0; bins];
+    for (k, &i) in filled.iter().enumerate() {
+        let j = filled[(k + 1) % filled.len()];
+        let gap = (j + bins - i) % bins;
+        let gap = if gap == 0 { bins } else { gap };
+        for step in 0..gap {
+            let f = step as f64 / gap as f64;
+            radii[(i + step) % bins] = (1.0 - f) * value(i) + f * value(j);
+        }
+    }
+    radii
 }
 
 #[cfg(test)]

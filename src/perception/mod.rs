@@ -9,10 +9,14 @@
 //!
 //! Stages, one module each, following section 2.3+ of the seed paper:
 //! [`filters`] (mean, median, Gaussian) -> [`threshold`] (adaptive mean/Gaussian, Otsu, isodata)
-//! -> [`contours`] (border following) / [`edges`] (Canny) -> [`subpixel`] (radial edge refinement)
+//! -> [`contours`] (border following) / [`edges`] (Canny) -> [`rim`] (the annulus around a
+//! candidate: flat, and how wide) -> [`subpixel`] (radial edge refinement, on [`ray_samples`])
 //! -> [`circle_fit`] (Kasa, Pratt, Gauss-Newton) -> [`roundness`] (filtered `Rmax - Rmin`);
 //! [`bore`] chains them and applies the geometric tests that tell a bore from a bottle or a stain.
+//! No stage assumes the part catalogue: walls of any ratio, bores from 12 px, dark or grey belts.
+//! [`synthetic`] and [`scene_space`] draw test images with known truth.
 
+pub mod border_cut;
 pub mod bore;
 pub mod calibration;
 pub mod circle_fit;
@@ -20,10 +24,17 @@ pub mod contours;
 pub mod edges;
 pub mod error;
 pub mod filters;
+pub mod integer_edges;
+pub mod ray_samples;
+pub mod rim;
 pub mod roundness;
+pub mod scene_draw;
+pub mod scene_space;
 pub mod subpixel;
 pub mod synthetic;
 pub mod threshold;
 
-pub use bore::{Bore, BoreDetector, BoreDetectorParams, EdgeMode};
+pub use bore::{
+    Bore, BoreDetector, BoreDetectorParams, BoreReport, EdgeMode, SkipReason, SkippedBore,
+};
 pub use error::PerceptionError;

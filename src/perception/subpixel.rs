@@ -34,6 +34,9 @@ pub struct RayParams {
     pub min_contrast: f64,
     /// Half width of the window the edge's area estimate integrates over.
     pub integral_half_px: f64,
+    /// Farthest the rim-side windows reach from the edge: a pixel and a half short of a thin
+    /// wall's outer edge (see [`Self::within_wall`]); at least `level_far_px` for a wide one.
+    pub rim_far_px: f64,
 }
 
 impl Default for RayParams {
@@ -46,7 +49,18 @@ impl Default for RayParams {
             rim_near_px: 1.5,
             min_contrast: 20.0,
             integral_half_px: 2.0,
+            rim_far_px: 6.0,
         }
+    }
+}
+
+impl RayParams {
+    /// These parameters for a rim `wall_px` wide: the rim-side windows stop 1.5 px short of the
+    /// wall's outer edge (bilinear samples of an area-sampled step differ from the levels either
+    /// side up to 1.5 px from it), and never closer to the edge than 0.5 px.
+    pub fn within_wall(mut self, wall_px: f64) -> Self {
+        self.rim_far_px = (wall_px - 1.5).clamp(0.5, self.level_far_px);
+        self
     }
 }
 
@@ -103,201 +117,8 @@ impl EdgePoint {
     }
 }
 
-/// Bilinear sample of `image` at `(x, y)` (pixel centres at integers), clamped to the image.
-#[inline]
-pub fn sample_bilinear(image: &GrayImage, x: f64, y: f64) -> f64 {
-    let (w, h) = (image.width() as usize, image.height() as usize);
-    let x = x.clamp(0.0, (w - 1) as f64);
-    let y = y.clamp(0.0, (h - 1) as f64);
-    // Truncation is floor here (both are clamped to >= 0) and, unlike `floor`, needs no libm call.
-    let ([x0, y0], [fx, fy]) = split_position(x, y);
-    let (x1, y1) = ((x0 + 1).min(w - 1), (y0 + 1).min(h - 1));
-    let raw = image.as_raw();
-    let p = |xx: usize, yy: usize| f64::from(raw[yy * w + xx]);
-    let top = p(x0, y0) + fx * (p(x1, y0) - p(x0, y0));
-    let bottom = p(x0, y1) + fx * (p(x1, y1) - p(x0, y1));
-    top + fy * (bottom - top)
-}
-
-/// Integer part and fraction of a position with non-negative coordinates inside an image. Goes
-/// through `i64`, whose conversions to and from `f64` are single instructions on x86-64, where
-/// those of `usize` take several; the values are the same (image sides are below 2^32).
-#[inline]
-fn split_position(x: f64, y: f64) -> ([usize; 2], [f64; 2]) {
-    let (x0, y0) = (x as i64, y as i64);
-    ([x0 as usize, y0 as usize], [x - x0 as f64, y - y0 as f64])
-}
-
-/// Samples the ray from `centre` with unit direction `dir` at `from + step * i`, `i < count`,
-/// into `out` (cleared first); equal to [`sample_bilinear`] at each point.
-pub fn sample_ray(
-    image: &GrayImage,
-    centre: [f64; 2],
-    dir: [f64; 2],
-    from: f64,
-    step: f64,
-    count: usize,
-    out: &mut Vec<f64>,
-) {
-    out.clear();
-    out.resize(count, 0.0);
-    let ray = RaySamples {
-        image,
-        centre,
-        dir,
-        from,
-        step,
-    };
-    ray.fill(0..count, out);
-}
-
-/// Where the samples of one ray lie: sample `i` is at `centre + (from + step i) dir`.
-struct RaySamples<'a> {
-    image: &'a GrayImage,
-    centre: [f64; 2],
-    dir: [f64; 2],
-    from: f64,
-    step: f64,
-}
-
-impl RaySamples<'_> {
-    /// Position of sample `i`.
-    #[inline]
-    fn at(&self, i: usize) -> [f64; 2] {
-        // Through u32 (a sample count never reaches 2^32): one conversion instruction, where
-        // usize to f64 takes several on x86-64; the value is the same.
-        let t = self.from + self.step * f64::from(i as u32);
-        [
-            self.centre[0] + t * self.dir[0],
-            self.centre[1] + t * self.dir[1],
-        ]
-    }
-
-    /// Writes samples `range` into `out[range]` (bilinear, as [`sample_bilinear`]). Each sample
-    /// depends on its index alone, so filling a profile piecewise gives the same bytes as at once.
-    fn fill(&self, range: std::ops::Range<usize>, out: &mut [f64]) {
-        let Some(out) = out.get_mut(range.clone()) else {
-            return;
-        };
-        if range.is_empty() {
-            return;
-        }
-        let (w, h) = (self.image.width() as usize, self.image.height() as usize);
-        // Both ends strictly inside the last pixel row and column: so is the whole segment, and
-        // every sample has its four neighbours without clamping.
-        let inside =
-            |[x, y]: [f64; 2]| x >= 0.0 && y >= 0.0 && x < (w as f64 - 1.0) && y < (h as f64 - 1.0);
-        if !(inside(self.at(range.start)) && inside(self.at(range.end - 1))) {
-            for (o, i) in out.iter_mut().zip(range) {
-                let [x, y] = self.at(i);
-                *o = sample_bilinear(self.image, x, y);
-            }
-            return;
-        }
-        #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2")
-            && w >= 2
-            && h >= 2
-            && i32::try_from(self.image.as_raw().len()).is_ok()
-        {
-            // SAFETY: the function only requires AVX2, which the CPU was just found to have.
-            unsafe { self.fill_inside_avx2(range.start, out) };
-            return;
-        }
-        self.fill_inside(range.start, out);
-    }
-
-    /// Samples `first..first + out.len()` into `out`, all of whose four neighbours lie inside the
-    /// image (see [`Self::fill`]).
-    fn fill_inside(&self, first: usize, out: &mut [f64]) {
-        let raw = self.image.as_raw();
-        let w = self.image.width() as usize;
-        for (o, i) in out.iter_mut().zip(first..) {
-            let [x, y] = self.at(i);
-            let ([x0, y0], [fx, fy]) = split_position(x, y);
-            let index = y0 * w + x0;
-            let (Some(&[p00, p01]), Some(&[p10, p11])) = (
-                raw.get(index..index + 2).and_then(|q| q.first_chunk::<2>()),
-                raw.get(index + w..index + w + 2)
-                    .and_then(|q| q.first_chunk::<2>()),
-            ) else {
-                continue;
-            };
-            let (p00, p01, p10, p11) = (
-                f64::from(p00),
-                f64::from(p01),
-                f64::from(p10),
-                f64::from(p11),
-            );
-            let top = p00 + fx * (p01 - p00);
-            let bottom = p10 + fx * (p11 - p10);
-            *o = top + fy * (bottom - top);
-        }
-    }
-
-    /// [`Self::fill_inside`], four samples at a time with AVX2: the same IEEE operations in the
-    /// same order on each lane (Rust never fuses a multiply and an add), so the same bits. The
-    /// image must be at least 2x2 pixels (or the clamped reads below could leave it) and have
-    /// fewer than 2^31 bytes (indices are `i32` lanes); [`Self::fill`] checks both.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    fn fill_inside_avx2(&self, first: usize, out: &mut [f64]) {
-        use std::arch::x86_64::*;
-        let raw = self.image.as_raw();
-        let w = self.image.width() as usize;
-        // Each gather reads four bytes: the top pair from its first two, the bottom pair from
-        // the last two of a read starting two bytes early (so it never passes the image's end).
-        // Clamping the start indices keeps every read inside the image whatever the positions.
-        let last_start = raw.len().saturating_sub(w + 2) as i32;
-        let (low, high) = (_mm_setzero_si128(), _mm_set1_epi32(last_start));
-        let (width, byte) = (_mm_set1_epi32(w as i32), _mm_set1_epi32(0xff));
-        let bottom_offset = _mm_set1_epi32(w as i32 - 2);
-        let (from, step) = (_mm256_set1_pd(self.from), _mm256_set1_pd(self.step));
-        let (cx, cy) = (
-            _mm256_set1_pd(self.centre[0]),
-            _mm256_set1_pd(self.centre[1]),
-        );
-        let (dx, dy) = (_mm256_set1_pd(self.dir[0]), _mm256_set1_pd(self.dir[1]));
-        let lanes = _mm256_set_pd(3.0, 2.0, 1.0, 0.0);
-        let mut chunks = out.chunks_exact_mut(4);
-        let mut i = first;
-        for chunk in &mut chunks {
-            let index = _mm256_add_pd(_mm256_set1_pd(f64::from(i as u32)), lanes);
-            let t = _mm256_add_pd(from, _mm256_mul_pd(step, index));
-            let x = _mm256_add_pd(cx, _mm256_mul_pd(t, dx));
-            let y = _mm256_add_pd(cy, _mm256_mul_pd(t, dy));
-            let (x0, y0) = (_mm256_cvttpd_epi32(x), _mm256_cvttpd_epi32(y));
-            let fx = _mm256_sub_pd(x, _mm256_cvtepi32_pd(x0));
-            let fy = _mm256_sub_pd(y, _mm256_cvtepi32_pd(y0));
-            let start = _mm_add_epi32(_mm_mullo_epi32(y0, width), x0);
-            let start = _mm_min_epi32(_mm_max_epi32(start, low), high);
-            // SAFETY: `start` lies in `[0, len - w - 2]`, so the four bytes read from `start`
-            // and from `start + w - 2` are inside `raw` (`w >= 2` for a sample to be inside).
-            let (top, bottom) = unsafe {
-                (
-                    _mm_i32gather_epi32::<1>(raw.as_ptr().cast(), start),
-                    _mm_i32gather_epi32::<1>(
-                        raw.as_ptr().cast(),
-                        _mm_add_epi32(start, bottom_offset),
-                    ),
-                )
-            };
-            let level = |v: __m128i| _mm256_cvtepi32_pd(_mm_and_si128(v, byte));
-            let (p00, p01) = (level(top), level(_mm_srli_epi32::<8>(top)));
-            let (p10, p11) = (
-                level(_mm_srli_epi32::<16>(bottom)),
-                level(_mm_srli_epi32::<24>(bottom)),
-            );
-            let top = _mm256_add_pd(p00, _mm256_mul_pd(fx, _mm256_sub_pd(p01, p00)));
-            let bottom = _mm256_add_pd(p10, _mm256_mul_pd(fx, _mm256_sub_pd(p11, p10)));
-            let value = _mm256_add_pd(top, _mm256_mul_pd(fy, _mm256_sub_pd(bottom, top)));
-            // SAFETY: `chunk` holds exactly four `f64`.
-            unsafe { _mm256_storeu_pd(chunk.as_mut_ptr(), value) };
-            i += 4;
-        }
-        self.fill_inside(i, chunks.into_remainder());
-    }
-}
+use crate::perception::ray_samples::RaySamples;
+pub use crate::perception::ray_samples::{sample_bilinear, sample_ray};
 
 /// Mean of `profile[from..=to]`, indices clamped to the profile.
 fn window_mean(profile: &[f64], from: isize, to: isize) -> f64 {
@@ -331,7 +152,9 @@ pub fn refine_ray(
     }
     let [c, s] = ray.unit;
     let step = params.step_px;
-    let steps_of = |d: f64| (d / step).round() as isize;
+    // Truncation of the value plus a half: `round` for these non-negative values, without a libm
+    // call (rounding instructions need SSE4.1, beyond the baseline target).
+    let steps_of = |d: f64| (d / step + 0.5) as isize;
     let (search, near, far) = (
         steps_of(params.search_half_px),
         steps_of(params.level_near_px),
@@ -344,7 +167,7 @@ pub fn refine_ray(
     let reach = search + far.max(half + 1);
     // The profile's first sample may not pass the centre: keep `reach` samples inside.
     let t0 = (expected_radius_px - reach as f64 * step).max(0.0);
-    let centre_index = ((expected_radius_px - t0) / step).round() as isize;
+    let centre_index = ((expected_radius_px - t0) / step + 0.5) as isize;
     let count = (centre_index + reach + 1) as usize;
     let samples = RaySamples {
         image,
@@ -386,16 +209,19 @@ pub fn refine_ray(
     samples.fill(searched.end.min(end)..end, scratch);
     let profile = scratch.as_slice();
     let (j, _) = best?;
+    // The rim side stops short of a thin wall's outer edge.
+    let rim_far = steps_of(params.rim_far_px).clamp(1, far);
+    let (rim_near_out, rim_level_near) = (rim_near.min(rim_far - 1).max(0), near.min(rim_far));
     let inner_level = window_mean(profile, j - far, j - near);
-    let outer_level = window_mean(profile, j + near, j + far);
+    let outer_level = window_mean(profile, j + rim_level_near, j + rim_far);
     if outer_level - inner_level < params.min_contrast {
         return None;
     }
     // The flanks as lines, so that a ramp (a stain's soft rim, a shadow, uneven light) does not
     // bias the normalisation.
     let inner = Flank::fit(profile, j - far, j - rim_near);
-    let outer = Flank::fit(profile, j + rim_near, j + far);
-    let (a, b) = ((j - half).max(0), (j + half).min(last));
+    let outer = Flank::fit(profile, j + rim_near_out, j + rim_far);
+    let (a, b) = ((j - half).max(0), (j + half.min(rim_far)).min(last));
     let mut integral = 0.0;
     for k in a..=b {
         let weight = if k == a || k == b { 0.5 } else { 1.0 };
@@ -559,67 +385,6 @@ mod tests {
             "mean radial error {}",
             sum / 360.0
         );
-    }
-
-    #[test]
-    fn ray_samples_equal_bilinear_samples_inside_and_across_the_border() {
-        let image = disc_scene(60.0, 70.0, 30.0);
-        let mut profile = Vec::new();
-        for (centre, angle, from) in [
-            ([80.0, 80.0], 0.3, 5.0),
-            ([150.0, 10.0], -0.7, 0.0),
-            ([3.0, 150.0], 2.5, -4.0),
-        ] {
-            let dir = [f64::cos(angle), f64::sin(angle)];
-            sample_ray(&image, centre, dir, from, 0.5, 40, &mut profile);
-            for (i, &v) in profile.iter().enumerate() {
-                let t = from + 0.5 * i as f64;
-                let expected =
-                    sample_bilinear(&image, centre[0] + t * dir[0], centre[1] + t * dir[1]);
-                assert!((v - expected).abs() < 1e-9, "sample {i}: {v} vs {expected}");
-            }
-        }
-    }
-
-    #[test]
-    fn avx2_ray_samples_have_the_same_bits_as_the_portable_ones() {
-        #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            let mut rng = crate::rng::SimRng::new(7);
-            let (w, h) = (203u32, 157u32);
-            let data: Vec<u8> = (0..w * h).map(|_| (rng.next_u64() % 256) as u8).collect();
-            let image = GrayImage::from_raw(w, h, data).unwrap_or_else(|| GrayImage::new(1, 1));
-            let (mut portable, mut avx2) = (Vec::new(), Vec::new());
-            let mut compared = 0;
-            for _ in 0..2000 {
-                let centre = [rng.range(0.0, f64::from(w)), rng.range(0.0, f64::from(h))];
-                let angle = rng.range(0.0, std::f64::consts::TAU);
-                let samples = RaySamples {
-                    image: &image,
-                    centre,
-                    dir: [angle.cos(), angle.sin()],
-                    from: rng.range(0.0, 30.0),
-                    step: rng.range(0.1, 1.0),
-                };
-                let first = (rng.next_u64() % 8) as usize;
-                let count = 1 + (rng.next_u64() % 40) as usize;
-                let inside = |[x, y]: [f64; 2]| {
-                    x >= 0.0 && y >= 0.0 && x < f64::from(w - 1) && y < f64::from(h - 1)
-                };
-                if !(inside(samples.at(first)) && inside(samples.at(first + count - 1))) {
-                    continue;
-                }
-                portable.resize(count, 0.0);
-                avx2.resize(count, 0.0);
-                samples.fill_inside(first, &mut portable);
-                // SAFETY: the CPU has AVX2 (checked above).
-                unsafe { samples.fill_inside_avx2(first, &mut avx2) };
-                let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
-                assert_eq!(bits(&portable), bits(&avx2));
-                compared += 1;
-            }
-            assert!(compared > 200, "only {compared} rays inside");
-        }
     }
 
     #[test]

@@ -62,24 +62,41 @@ impl ThresholdMethod {
 /// Runs the same code compiled for AVX2 where the CPU has it (chosen at run time): every step is
 /// exact integer or exact `f32` arithmetic, so both builds give the same bytes (tested).
 pub fn adaptive_mean_threshold(image: &GrayImage, block_radius_px: u32, delta: i32) -> GrayImage {
+    adaptive_mean_threshold_floored(image, block_radius_px, delta, u8::MAX)
+}
+
+/// [`adaptive_mean_threshold`], and bright wherever `p > floor` too (a global level under the
+/// local one: see [`crate::perception::bore::BoreDetectorParams::bright_above_otsu`]), in the same
+/// pass; `floor = 255` adds nothing.
+pub fn adaptive_mean_threshold_floored(
+    image: &GrayImage,
+    block_radius_px: u32,
+    delta: i32,
+    floor: u8,
+) -> GrayImage {
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx2") {
         // SAFETY: the function only requires AVX2, which the CPU was just found to have.
-        return unsafe { adaptive_mean_avx2(image, block_radius_px, delta) };
+        return unsafe { adaptive_mean_avx2(image, block_radius_px, delta, floor) };
     }
-    adaptive_mean_kernel(image, block_radius_px, delta)
+    adaptive_mean_kernel(image, block_radius_px, delta, floor)
 }
 
 /// [`adaptive_mean_kernel`] compiled for AVX2.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-fn adaptive_mean_avx2(image: &GrayImage, block_radius_px: u32, delta: i32) -> GrayImage {
-    adaptive_mean_kernel(image, block_radius_px, delta)
+fn adaptive_mean_avx2(image: &GrayImage, block_radius_px: u32, delta: i32, floor: u8) -> GrayImage {
+    adaptive_mean_kernel(image, block_radius_px, delta, floor)
 }
 
-/// The body of [`adaptive_mean_threshold`], inlined into each instruction-set variant.
+/// The body of [`adaptive_mean_threshold_floored`], inlined into each instruction-set variant.
 #[inline(always)]
-fn adaptive_mean_kernel(image: &GrayImage, block_radius_px: u32, delta: i32) -> GrayImage {
+fn adaptive_mean_kernel(
+    image: &GrayImage,
+    block_radius_px: u32,
+    delta: i32,
+    floor: u8,
+) -> GrayImage {
     let (w, h) = (image.width() as usize, image.height() as usize);
     let mut out = GrayImage::new(image.width(), image.height());
     if w == 0 || h == 0 {
@@ -125,7 +142,11 @@ fn adaptive_mean_kernel(image: &GrayImage, block_radius_px: u32, delta: i32) -> 
             let sum = i64::from(prefix[x_high + 1].wrapping_sub(prefix[x_low]));
             // p >= floor(sum / count) - delta  <=>  (p + delta + 1) * count > sum.
             let k = i64::from(src_row[x]) + i64::from(delta) + 1;
-            if k * count > sum { 255 } else { 0 }
+            if k * count > sum || src_row[x] > floor {
+                255
+            } else {
+                0
+            }
         };
         // Interior columns share one block size: a branch-free loop the compiler vectorises, in
         // f32 lanes (SSE2 has no 32-bit integer multiply), exact while every product and sum
@@ -152,7 +173,7 @@ fn adaptive_mean_kernel(image: &GrayImage, block_radius_px: u32, delta: i32) -> 
             {
                 let sum = hi.wrapping_sub(lo) as i32 as f32;
                 let k = f32::from(p) + offset;
-                *o = if k * count > sum { 255 } else { 0 };
+                *o = if k * count > sum || p > floor { 255 } else { 0 };
             }
         }
     }
@@ -182,9 +203,72 @@ pub fn binarize(image: &GrayImage, level: u8) -> GrayImage {
     out
 }
 
-/// Otsu's level: pixels `> level` form the bright class.
+/// Sets bright (255) every pixel of `binary` whose level in `image` is above `level` (both images
+/// the same size).
+pub fn brighten_above(binary: &mut GrayImage, image: &GrayImage, level: u8) {
+    for (b, &p) in binary.iter_mut().zip(image.iter()) {
+        if p > level {
+            *b = 255;
+        }
+    }
+}
+
+/// Otsu's level: pixels `> level` form the bright class. Equal to
+/// `imageproc::contrast::otsu_level` (tested), whose histogram walks the image pixel by pixel
+/// through its generic accessors and was a tenth of the bore detector's time.
 pub fn otsu_level(image: &GrayImage) -> u8 {
-    imageproc::contrast::otsu_level(image)
+    let histogram = histogram(image);
+    let total_weight = image.width() * image.height();
+    // The same operations in the same order as imageproc's, so the same level.
+    let total_sum = histogram
+        .iter()
+        .enumerate()
+        .fold(0f64, |sum, (t, &h)| sum + (t as u32 * h) as f64);
+    let (mut background_sum, mut background_weight) = (0f64, 0u32);
+    let (mut largest_variance, mut best) = (0f64, 0u8);
+    for (level, &count) in histogram.iter().enumerate() {
+        background_weight += count;
+        if background_weight == 0 {
+            continue;
+        }
+        let foreground_weight = total_weight - background_weight;
+        if foreground_weight == 0 {
+            break;
+        }
+        background_sum += (level as u32 * count) as f64;
+        let background_mean = background_sum / f64::from(background_weight);
+        let foreground_mean = (total_sum - background_sum) / f64::from(foreground_weight);
+        let variance = f64::from(background_weight)
+            * f64::from(foreground_weight)
+            * (background_mean - foreground_mean).powi(2);
+        if variance > largest_variance {
+            largest_variance = variance;
+            best = level as u8;
+        }
+    }
+    best
+}
+
+/// Grey-level histogram, counted in four interleaved tables so that runs of equal levels do not
+/// wait on each other's increments.
+fn histogram(image: &GrayImage) -> [u32; 256] {
+    let mut tables = [[0u32; 256]; 4];
+    let raw = image.as_raw();
+    let mut chunks = raw.chunks_exact(4);
+    for c in &mut chunks {
+        tables[0][usize::from(c[0])] += 1;
+        tables[1][usize::from(c[1])] += 1;
+        tables[2][usize::from(c[2])] += 1;
+        tables[3][usize::from(c[3])] += 1;
+    }
+    for &p in chunks.remainder() {
+        tables[0][usize::from(p)] += 1;
+    }
+    let mut total = [0u32; 256];
+    for (i, t) in total.iter_mut().enumerate() {
+        *t = tables[0][i] + tables[1][i] + tables[2][i] + tables[3][i];
+    }
+    total
 }
 
 /// Iterative (isodata, Ridler-Calvard) level: the midpoint of the two class means, iterated
@@ -252,7 +336,19 @@ mod tests {
             let oracle = imageproc::contrast::adaptive_threshold(&image, radius, delta);
             prop_assert_eq!(ours.as_raw(), oracle.as_raw());
             // The baseline build too, whichever the dispatch picked.
-            let portable = adaptive_mean_kernel(&image, radius, delta);
+            let portable = adaptive_mean_kernel(&image, radius, delta, u8::MAX);
+            prop_assert_eq!(portable.as_raw(), oracle.as_raw());
+        }
+
+        #[test]
+        fn a_floored_adaptive_mean_is_imageproc_or_above_the_floor(
+            image in arbitrary_image(), radius in 1u32..25, delta in -40i32..40, floor in any::<u8>()
+        ) {
+            let mut oracle = imageproc::contrast::adaptive_threshold(&image, radius, delta);
+            brighten_above(&mut oracle, &image, floor);
+            let ours = adaptive_mean_threshold_floored(&image, radius, delta, floor);
+            prop_assert_eq!(ours.as_raw(), oracle.as_raw());
+            let portable = adaptive_mean_kernel(&image, radius, delta, floor);
             prop_assert_eq!(portable.as_raw(), oracle.as_raw());
         }
 
@@ -268,8 +364,20 @@ mod tests {
             let ours = adaptive_mean_threshold(&image, 20, delta);
             let oracle = imageproc::contrast::adaptive_threshold(&image, 20, delta);
             prop_assert_eq!(ours.as_raw(), oracle.as_raw());
-            let portable = adaptive_mean_kernel(&image, 20, delta);
+            let portable = adaptive_mean_kernel(&image, 20, delta, u8::MAX);
             prop_assert_eq!(portable.as_raw(), oracle.as_raw());
+        }
+
+        #[test]
+        fn otsu_level_matches_imageproc(image in arbitrary_image(), low in any::<u8>()) {
+            // Also a two-level image, where the variance has a clear maximum.
+            let mut two = image.clone();
+            for p in two.iter_mut().step_by(3) {
+                *p = low;
+            }
+            for image in [image, two] {
+                prop_assert_eq!(otsu_level(&image), imageproc::contrast::otsu_level(&image));
+            }
         }
 
         #[test]

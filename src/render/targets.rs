@@ -4,8 +4,12 @@
 use super::error::RenderError;
 use super::pipeline::{COLOUR_FORMAT, DEPTH_FORMAT, ID_FORMAT};
 
-/// Render-target sizes a renderer keeps before it drops them all and starts again.
-pub(super) const MAX_TARGET_SIZES: usize = 12;
+/// Render-target sizes a renderer keeps before it drops them all and starts again. Each
+/// area of interest has its own size, and one target with its 4x MSAA colour and depth costs
+/// about 11 MB on a software adapter: a dozen of them per renderer grew a camera batch by some
+/// 0.8 MB a trial, to 480 MB at 200 trials (issue 17). Four hold the frame and the latest
+/// windows; re-creating a target costs far less than rendering into it.
+pub(super) const MAX_TARGET_SIZES: usize = 4;
 
 /// A frame's render targets and readback buffer at one size.
 pub(super) struct Targets {

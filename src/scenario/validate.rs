@@ -13,6 +13,14 @@ pub const MAX_GRIPPER_OPENING_M: f64 = 0.10;
 /// The most force a finger motor can give, N.
 pub const MAX_FINGER_FORCE_N: f64 = 100.0;
 
+/// Farthest any placed thing (robot base, belt, bin, camera) may sit from the cell's origin
+/// along each axis, m: the arm reaches under 1 m, so a cell fits well within this.
+pub const MAX_CELL_REACH_M: f64 = 10.0;
+/// Fastest belt, m/s: conveyors that feed a pick station run at a few tenths of this.
+pub const MAX_BELT_SPEED_M_S: f64 = 5.0;
+/// Highest friction coefficient accepted (rubber on steel is about 1).
+pub const MAX_FRICTION: f64 = 5.0;
+
 /// A scenario file that cannot be used.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[error("{}: {key}: {reason}", file.display())]
@@ -48,6 +56,15 @@ impl ScenarioError {
     }
 }
 
+/// A value as an error message shows it: plainly, or in exponent form when huge or tiny.
+fn show(value: f64) -> String {
+    if value == 0.0 || !value.is_finite() || (1e-6..1e9).contains(&value.abs()) {
+        format!("{value}")
+    } else {
+        format!("{value:e}")
+    }
+}
+
 struct Checker<'a> {
     file: &'a Path,
 }
@@ -65,7 +82,10 @@ impl Checker<'_> {
         if value.is_finite() && value > 0.0 {
             Ok(())
         } else {
-            Err(self.fail(key, format!("must be a positive number, got {value}")))
+            Err(self.fail(
+                key,
+                format!("must be a positive number, got {}", show(value)),
+            ))
         }
     }
 
@@ -73,7 +93,40 @@ impl Checker<'_> {
         if value.is_finite() && (low..=high).contains(&value) {
             Ok(())
         } else {
-            Err(self.fail(key, format!("must lie in [{low}, {high}], got {value}")))
+            Err(self.fail(
+                key,
+                format!("must lie in [{low}, {high}], got {}", show(value)),
+            ))
+        }
+    }
+
+    /// A positive value no larger than `high`: `(0, high]`.
+    fn positive_up_to(&self, key: &str, value: f64, high: f64) -> Result<(), ScenarioError> {
+        if value.is_finite() && value > 0.0 && value <= high {
+            Ok(())
+        } else {
+            Err(self.fail(
+                key,
+                format!(
+                    "must be a positive number in (0, {high}], got {}",
+                    show(value)
+                ),
+            ))
+        }
+    }
+
+    /// A point whose every coordinate lies within `reach` of the origin, m.
+    fn point_within(&self, key: &str, point: &[f64; 3], reach: f64) -> Result<(), ScenarioError> {
+        if point.iter().all(|v| v.is_finite() && v.abs() <= reach) {
+            Ok(())
+        } else {
+            Err(self.fail(
+                key,
+                format!(
+                    "must lie in [-{reach}, {reach}] m on each axis, got [{}]",
+                    point.map(show).join(", ")
+                ),
+            ))
         }
     }
 
@@ -99,7 +152,7 @@ impl Scenario {
         if !(1..=1000).contains(&self.parts_per_trial) {
             return Err(c.fail("parts_per_trial", "must lie in [1, 1000]"));
         }
-        c.positive("roundness_tolerance_mm", self.roundness_tolerance_mm)?;
+        c.positive_up_to("roundness_tolerance_mm", self.roundness_tolerance_mm, 5.0)?;
         c.in_range(
             "roundness_uncertainty_mm",
             self.roundness_uncertainty_mm,
@@ -129,10 +182,10 @@ impl Scenario {
         self.validate_bins(&c)?;
         self.validate_stream(&c)?;
         let task = &self.task;
-        c.positive("task.wait_timeout_s", task.wait_timeout_s)?;
-        c.positive("task.trial_timeout_s", task.trial_timeout_s)?;
-        c.positive("task.slip_tolerance_m", task.slip_tolerance_m)?;
-        c.positive("task.bottle_tolerance_m", task.bottle_tolerance_m)?;
+        c.positive_up_to("task.wait_timeout_s", task.wait_timeout_s, 3600.0)?;
+        c.positive_up_to("task.trial_timeout_s", task.trial_timeout_s, 86_400.0)?;
+        c.positive_up_to("task.slip_tolerance_m", task.slip_tolerance_m, 1.0)?;
+        c.positive_up_to("task.bottle_tolerance_m", task.bottle_tolerance_m, 1.0)?;
         self.validate_camera(&c)?;
         Ok(())
     }
@@ -162,10 +215,10 @@ impl Scenario {
             return Err(c.fail("camera.roi_scale", "must lie in [1, 4]"));
         }
         if let Some(p) = camera.position_m {
-            c.finite("camera.position_m", &p)?;
+            c.point_within("camera.position_m", &p, MAX_CELL_REACH_M)?;
         }
         if let Some(p) = camera.look_at_m {
-            c.finite("camera.look_at_m", &p)?;
+            c.point_within("camera.look_at_m", &p, MAX_CELL_REACH_M)?;
         }
         let (eye, target) = camera.eye_and_target(&self.conveyor);
         let view = [target[0] - eye[0], target[1] - eye[1], target[2] - eye[2]];
@@ -277,8 +330,8 @@ impl Scenario {
 
     fn validate_robot(&self, c: &Checker) -> Result<(), ScenarioError> {
         let robot = &self.robot;
-        c.finite("robot.base_xyz_m", &robot.base_xyz_m)?;
-        c.positive("robot.pedestal_side_m", robot.pedestal_side_m)?;
+        c.point_within("robot.base_xyz_m", &robot.base_xyz_m, MAX_CELL_REACH_M)?;
+        c.positive_up_to("robot.pedestal_side_m", robot.pedestal_side_m, 2.0)?;
         c.positive("robot.base_xyz_m[2]", robot.base_xyz_m[2])?;
         c.in_range("robot.speed_fraction", robot.speed_fraction, 0.01, 1.0)?;
         c.in_range(
@@ -299,7 +352,7 @@ impl Scenario {
             MAX_FINGER_FORCE_N,
         )?;
         c.positive("gripper.grip_force_n", gripper.grip_force_n)?;
-        c.positive("gripper.pad_friction", gripper.pad_friction)?;
+        c.positive_up_to("gripper.pad_friction", gripper.pad_friction, MAX_FRICTION)?;
         c.in_range(
             "gripper.open_clearance_m",
             gripper.open_clearance_m,
@@ -311,12 +364,16 @@ impl Scenario {
 
     fn validate_conveyor(&self, c: &Checker) -> Result<(), ScenarioError> {
         let belt = &self.conveyor;
-        c.finite("conveyor.belt_center_m", &belt.belt_center_m)?;
-        c.positive("conveyor.length_m", belt.length_m)?;
-        c.positive("conveyor.width_m", belt.width_m)?;
-        c.positive("conveyor.speed_m_s", belt.speed_m_s)?;
-        c.positive("conveyor.friction", belt.friction)?;
-        c.positive("conveyor.spawn_upstream_m", belt.spawn_upstream_m)?;
+        c.point_within(
+            "conveyor.belt_center_m",
+            &belt.belt_center_m,
+            MAX_CELL_REACH_M,
+        )?;
+        c.positive_up_to("conveyor.length_m", belt.length_m, 50.0)?;
+        c.positive_up_to("conveyor.width_m", belt.width_m, 2.0)?;
+        c.positive_up_to("conveyor.speed_m_s", belt.speed_m_s, MAX_BELT_SPEED_M_S)?;
+        c.positive_up_to("conveyor.friction", belt.friction, MAX_FRICTION)?;
+        c.positive_up_to("conveyor.spawn_upstream_m", belt.spawn_upstream_m, 50.0)?;
         let half = belt.length_m / 2.0;
         let (start, end) = (belt.belt_center_m[0] - half, belt.belt_center_m[0] + half);
         c.in_range("conveyor.photo_eye_x_m", belt.photo_eye_x_m, start, end)?;
@@ -345,9 +402,9 @@ impl Scenario {
             if part.name.trim().is_empty() || !names.insert(part.name.as_str()) {
                 return Err(c.fail(key("name"), "must be a unique, non-empty name"));
             }
-            c.positive(&key("bore_diameter_mm"), part.bore_diameter_mm)?;
-            c.positive(&key("outer_diameter_mm"), part.outer_diameter_mm)?;
-            c.positive(&key("density_kg_m3"), part.density_kg_m3)?;
+            c.positive_up_to(&key("bore_diameter_mm"), part.bore_diameter_mm, 100.0)?;
+            c.positive_up_to(&key("outer_diameter_mm"), part.outer_diameter_mm, 100.0)?;
+            c.in_range(&key("density_kg_m3"), part.density_kg_m3, 100.0, 25_000.0)?;
             c.in_range(&key("height_mm"), part.height_mm, 40.0, 200.0)?;
             if let Some(force) = part.grip_force_n {
                 c.in_range(&key("grip_force_n"), force, 0.0, MAX_FINGER_FORCE_N)?;
@@ -397,15 +454,15 @@ impl Scenario {
 
     fn validate_bottle(&self, c: &Checker) -> Result<(), ScenarioError> {
         let bottle = &self.bottle;
-        c.positive("bottle.radius_m", bottle.radius_m)?;
-        c.positive("bottle.height_m", bottle.height_m)?;
-        c.positive("bottle.mass_kg", bottle.mass_kg)?;
+        c.positive_up_to("bottle.radius_m", bottle.radius_m, 0.2)?;
+        c.positive_up_to("bottle.height_m", bottle.height_m, 0.5)?;
+        c.positive_up_to("bottle.mass_kg", bottle.mass_kg, 5.0)?;
         c.in_range("bottle.lying_fraction", bottle.lying_fraction, 0.0, 1.0)?;
         let [near, far] = bottle.distance_range_m;
-        if !(near.is_finite() && far.is_finite() && 0.0 < near && near <= far) {
+        if !(near.is_finite() && far.is_finite() && 0.0 < near && near <= far && far <= 2.0) {
             return Err(c.fail(
                 "bottle.distance_range_m",
-                "must be [near, far] with 0 < near <= far",
+                format!("must be [near, far] with 0 < near <= far <= 2 m, got {near}, {far}"),
             ));
         }
         Ok(())
@@ -435,10 +492,14 @@ impl Scenario {
             if bin.name.trim().is_empty() || !names.insert(bin.name.as_str()) {
                 return Err(c.fail(key("name"), "must be a unique, non-empty name"));
             }
-            c.finite(&key("floor_center_m"), &bin.floor_center_m)?;
-            c.positive(&key("size_m[0]"), bin.size_m[0])?;
-            c.positive(&key("size_m[1]"), bin.size_m[1])?;
-            c.positive(&key("wall_height_m"), bin.wall_height_m)?;
+            c.point_within(
+                &key("floor_center_m"),
+                &bin.floor_center_m,
+                MAX_CELL_REACH_M,
+            )?;
+            c.positive_up_to(&key("size_m[0]"), bin.size_m[0], 2.0)?;
+            c.positive_up_to(&key("size_m[1]"), bin.size_m[1], 2.0)?;
+            c.positive_up_to(&key("wall_height_m"), bin.wall_height_m, 1.0)?;
             if bin.reject && !bin.accepts.is_empty() {
                 return Err(c.fail(key("accepts"), "the reject bin accepts no type"));
             }

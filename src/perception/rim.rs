@@ -1,0 +1,240 @@
+//! The rim around a bore candidate, read on rays walked outwards from the bore edge: its level,
+//! its width and whether it is the flat face of a machined annulus.
+//!
+//! A tube's end face is a machined annulus of one reflectance from the bore edge out to its outer
+//! edge, whatever the wall: ratios of the rim's outer diameter to the bore's from 1.15 to 3 and
+//! more. Beyond it lies a belt (dark or mid-grey), a touching neighbour, a stain or the image
+//! border. So the rim is not asked to close within any ratio. What it must be is flat: along a
+//! ray, from just outside the edge to where the level falls to `bore + end_share (rim - bore)`
+//! (its end), no sample may rise more than `max_rise_share` of the contrast above the rim's
+//! level next to the edge. A standing bottle's dark cap sits in a translucent body whose level
+//! climbs from the cap to its limb (and the cap's contrast is lower than a bore's): it fails.
+//! The test is on shares of the local contrast, so smooth illumination and vignetting pass.
+//!
+//! The same walk measures the wall's width, which sets how far the edge refinement may reach
+//! onto the rim ([`crate::perception::subpixel::RayParams::within_wall`]).
+
+use crate::perception::roundness::median_of;
+use crate::perception::subpixel::sample_bilinear;
+use image::GrayImage;
+use std::f64::consts::TAU;
+
+/// Parameters of [`scan_rim`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RimParams {
+    /// Rays walked.
+    pub rays: usize,
+    /// Where the walk starts, pixels outside the bore edge.
+    pub start_px: f64,
+    /// Longest walk, as a ratio of the outer to the bore radius (past the widest rim measured).
+    pub max_outer_ratio: f64,
+    /// The rim ends where the level falls below `bore + end_share (rim - bore)`.
+    pub end_share: f64,
+    /// Largest rise above the rim's level next to the edge, as a share of the contrast, for a
+    /// ray to count as flat.
+    pub max_rise_share: f64,
+}
+
+impl Default for RimParams {
+    fn default() -> Self {
+        Self {
+            rays: 32,
+            start_px: 1.5,
+            max_outer_ratio: 3.3,
+            end_share: 0.6,
+            max_rise_share: 0.3,
+        }
+    }
+}
+
+/// What the walk found.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RimScan {
+    /// Median level down the bore, half way to its edge.
+    pub bore_level: f64,
+    /// Median level of the rim next to the edge.
+    pub rim_level: f64,
+    /// Spread of the rim's level next to the edge around the bore (75th minus 25th percentile
+    /// over the rays), as a share of the contrast: small for one machined face under smooth
+    /// light, large for a dark disc between a bottle's body and the belt.
+    pub rim_spread: f64,
+    /// Share of the walked rays whose rim stayed flat.
+    pub flat_share: f64,
+    /// Median width of the rim over the rays where it ended inside the image (`None` when it
+    /// ended on none: cut by the border or covering the frame).
+    pub wall_px: Option<f64>,
+    /// Median ratio of the rim's outer radius to the bore radius, over the same rays.
+    pub outer_ratio: Option<f64>,
+}
+
+/// Walks `params.rays` rays from `centre`, each from `radius_at(unit)` (the coarse bore edge in
+/// that direction) outwards. `None` when the candidate is too close to the image to sample.
+pub fn scan_rim(
+    filtered: &GrayImage,
+    centre: [f64; 2],
+    radius_at: impl Fn([f64; 2]) -> f64,
+    params: &RimParams,
+) -> Option<RimScan> {
+    let (w, h) = (f64::from(filtered.width()), f64::from(filtered.height()));
+    let inside = |x: f64, y: f64| x >= 0.0 && y >= 0.0 && x <= w - 1.0 && y <= h - 1.0;
+    let units: Vec<[f64; 2]> = (0..params.rays)
+        .map(|i| {
+            let (s, c) = (TAU * (i as f64 + 0.5) / params.rays as f64).sin_cos();
+            [c, s]
+        })
+        .collect();
+    let mut bore_levels = Vec::with_capacity(units.len());
+    let mut rim_levels = Vec::with_capacity(units.len());
+    for &[c, s] in &units {
+        let r = radius_at([c, s]);
+        let (bx, by) = (centre[0] + 0.5 * r * c, centre[1] + 0.5 * r * s);
+        if inside(bx, by) {
+            bore_levels.push(sample_bilinear(filtered, bx, by));
+        }
+        // The brightest of the first samples past the edge: on a wall of two pixels only those
+        // reach the rim's level.
+        let rim = (0..4)
+            .map(|k| r + params.start_px + 0.5 * f64::from(k))
+            .filter(|&t| inside(centre[0] + t * c, centre[1] + t * s))
+            .map(|t| sample_bilinear(filtered, centre[0] + t * c, centre[1] + t * s))
+            .fold(f64::NEG_INFINITY, f64::max);
+        if rim.is_finite() {
+            rim_levels.push(rim);
+        }
+    }
+    if bore_levels.len() < units.len() / 2 || rim_levels.len() < units.len() / 2 {
+        return None;
+    }
+    let bore_level = median_of(&mut bore_levels);
+    let rim_level = median_of(&mut rim_levels);
+    let contrast = rim_level - bore_level;
+    rim_levels.sort_by(f64::total_cmp);
+    let percentile = |q: f64| rim_levels[((rim_levels.len() - 1) as f64 * q).round() as usize];
+    // The middle half only: a stain may darken the rim on a quarter of the rays.
+    let rim_spread = (percentile(0.75) - percentile(0.25)) / contrast.max(1.0);
+    let end_level = bore_level + params.end_share * contrast;
+    let mut flat = 0usize;
+    let mut walked = 0usize;
+    let mut walls = Vec::with_capacity(units.len());
+    let mut ratios = Vec::with_capacity(units.len());
+    for &[c, s] in &units {
+        let r = radius_at([c, s]);
+        let limit = params.max_outer_ratio * r + 2.0;
+        let mut t = r + params.start_px;
+        let mut near = f64::NEG_INFINITY;
+        let mut highest = f64::NEG_INFINITY;
+        let mut ended = None;
+        while t <= limit {
+            let (x, y) = (centre[0] + t * c, centre[1] + t * s);
+            if !inside(x, y) {
+                break;
+            }
+            let level = sample_bilinear(filtered, x, y);
+            if level < end_level {
+                ended = Some(t);
+                break;
+            }
+            if t < r + params.start_px + 2.0 {
+                near = near.max(level);
+            }
+            highest = highest.max(level);
+            t += 1.0;
+        }
+        if !near.is_finite() {
+            continue;
+        }
+        walked += 1;
+        if highest - near <= params.max_rise_share * contrast {
+            flat += 1;
+        }
+        if let Some(end) = ended {
+            walls.push(end - r);
+            ratios.push(end / r);
+        }
+    }
+    if walked == 0 {
+        return None;
+    }
+    let median = |v: &mut Vec<f64>| (!v.is_empty()).then(|| median_of(v));
+    Some(RimScan {
+        bore_level,
+        rim_level,
+        rim_spread,
+        flat_share: flat as f64 / walked as f64,
+        wall_px: median(&mut walls),
+        outer_ratio: median(&mut ratios),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::perception::synthetic::{BoreShape, Bottle, Illumination, Noise, Scene, Tube};
+
+    fn scene(tubes: Vec<Tube>, bottles: Vec<Bottle>, belt_level: f64) -> GrayImage {
+        Scene {
+            width_px: 320,
+            height_px: 240,
+            belt_level,
+            tubes,
+            bottles,
+            stains: vec![],
+            illumination: Illumination {
+                gradient_x: 0.3,
+                gradient_y: -0.2,
+                vignetting: 0.2,
+            },
+            noise: Noise::NONE,
+            noise_seed: 0,
+        }
+        .render()
+    }
+
+    fn tube(r: f64, ratio: f64) -> Tube {
+        Tube {
+            centre_px: [160.0, 120.0],
+            bore: BoreShape::Circle { radius_px: r },
+            outer_radius_px: ratio * r,
+            rim_level: 190.0,
+            bore_level: 20.0,
+        }
+    }
+
+    #[test]
+    fn thick_and_thin_walls_on_dark_and_grey_belts_are_flat_and_measured() {
+        for (r, ratio) in [(12.0, 1.3), (20.0, 3.0), (30.0, 1.15), (35.0, 2.5)] {
+            for belt in [40.0, 110.0] {
+                let image = scene(vec![tube(r, ratio)], vec![], belt);
+                let Some(scan) = scan_rim(&image, [160.0, 120.0], |_| r, &RimParams::default())
+                else {
+                    panic!("no scan");
+                };
+                assert!(scan.flat_share > 0.95, "r {r} ratio {ratio}: {scan:?}");
+                assert!(scan.rim_spread < 0.2, "r {r} ratio {ratio}: {scan:?}");
+                let Some(wall) = scan.wall_px else {
+                    panic!("r {r} ratio {ratio} belt {belt}: the rim never ended: {scan:?}");
+                };
+                let true_wall = (ratio - 1.0) * r;
+                assert!((wall - true_wall).abs() < 2.0, "wall {wall} vs {true_wall}");
+            }
+        }
+    }
+
+    #[test]
+    fn a_dark_cap_in_a_bottle_body_is_not_a_flat_rim() {
+        for cap_level in [30.0, 40.0, 50.0, 60.0] {
+            let bottle = Bottle::Standing {
+                centre_px: [160.0, 120.0],
+                body_radius_px: 70.0,
+                cap_radius_px: 22.0,
+                cap_level,
+            };
+            let image = scene(vec![], vec![bottle], 45.0);
+            let Some(scan) = scan_rim(&image, [160.0, 120.0], |_| 22.0, &RimParams::default())
+            else {
+                panic!("no scan");
+            };
+            assert!(scan.flat_share < 0.5, "cap {cap_level}: {scan:?}");
+        }
+    }
+}
