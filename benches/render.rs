@@ -1,7 +1,7 @@
 //! The camera's cost per frame (`cargo bench --bench render`): render + readback of the
 //! pick-station scene at 640x480 and 1280x960 (4x MSAA), the scene's meshes already on the
-//! device as in a running trial; plus the sensor effects, uploading a scene and a whole staged
-//! shot. Prints the adapter's name: without a GPU it is the software adapter (llvmpipe or
+//! device as in a running trial; plus the sensor effects (and their reference implementation),
+//! uploading a scene and a whole staged shot. Prints the adapter's name: without a GPU it is the software adapter (llvmpipe or
 //! lavapipe).
 //!
 //! Two groups: `render` measures wall-clock time; `render_cpu` measures the CPU time of the whole
@@ -87,6 +87,15 @@ fn render_benches(c: &mut Criterion) {
             b.iter(|| {
                 let mut image = clean.clone();
                 shot.sensor.apply(&mut image);
+                black_box(image)
+            })
+        });
+        // The model's plain definition, which the fast path above is tested against.
+        group.bench_function(format!("sensor_effects_reference_{w}x{h}"), |b| {
+            b.iter(|| {
+                let mut image = clean.clone();
+                shot.sensor
+                    .apply_window_reference(&mut image, (0, 0), (w, h));
                 black_box(image)
             })
         });

@@ -12,7 +12,7 @@ use crate::rng::SimRng;
 use crate::scenario::Scenario;
 use crate::sim::{
     BottlePlacement, ConveyorHooks, ItemSet, PartInstance, SimArm, SimError, Tag, World,
-    WorldParams, body_pose,
+    WorldParams, body_pose, groups,
 };
 
 /// Why a cell could not be built.
@@ -123,6 +123,13 @@ impl Builder<'_> {
         }
         handle
     }
+
+    /// Takes a fixed collider out of the arm's pairs (see [`groups::out_of_reach`]).
+    fn out_of_reach(&mut self, collider: ColliderHandle) {
+        if let Some(collider) = self.world.physics.colliders.get_mut(collider) {
+            collider.set_collision_groups(groups::out_of_reach());
+        }
+    }
 }
 
 impl Cell {
@@ -144,7 +151,7 @@ impl Cell {
             world: &mut world,
             scenery: Vec::new(),
         };
-        builder.fixed_box(
+        let floor = builder.fixed_box(
             "floor",
             [0.0, 0.0, -0.05],
             [3.0, 3.0, 0.05],
@@ -153,7 +160,8 @@ impl Cell {
             true,
         );
         let side = scenario.robot.pedestal_side_m / 2.0;
-        builder.fixed_box(
+        builder.out_of_reach(floor);
+        let pedestal = builder.fixed_box(
             "pedestal",
             [base[0], base[1], base[2] / 2.0],
             [side, side, base[2] / 2.0],
@@ -161,6 +169,7 @@ impl Cell {
             0.8,
             true,
         );
+        builder.out_of_reach(pedestal);
 
         let belt = &scenario.conveyor;
         let belt_top_z = belt.belt_center_m[2];
@@ -205,6 +214,7 @@ impl Cell {
         let photo_eye = physics.colliders.insert_with_parent(
             ColliderBuilder::cuboid(0.002, belt.width_m as f32 / 2.0, 0.02)
                 .sensor(true)
+                .collision_groups(groups::photo_eye())
                 .user_data(Tag::PhotoEye.bits()),
             eye_body,
             &mut physics.bodies,
@@ -240,7 +250,7 @@ impl Cell {
             // The stand the bin sits on.
             let stand_h = floor_z - wall;
             if stand_h > 0.0 {
-                builder.fixed_box(
+                let stand = builder.fixed_box(
                     &name,
                     [cx, cy, stand_h / 2.0],
                     [sx / 2.0, sy / 2.0, stand_h / 2.0],
@@ -248,6 +258,7 @@ impl Cell {
                     0.6,
                     true,
                 );
+                builder.out_of_reach(stand);
             }
             bins.push(BinBody {
                 name: bin.name.clone(),

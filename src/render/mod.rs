@@ -9,7 +9,8 @@
 //!   projection is built from a [`crate::camera::CameraCalibration`], so the
 //!   renderer and perception share one camera model.
 //! - [`sensor`]: seeded sensor effects after the render (gradient, vignetting, noise,
-//!   salt-and-pepper); [`shot`]: a staged pick-station shot with drawn realism and ground truth;
+//!   salt-and-pepper), with the model's plain definition beside it as the reference its tests
+//!   compare against; [`shot`]: a staged pick-station shot with drawn realism and ground truth;
 //!   [`window`]: an area of interest of a shot read out at the sensor's full pitch;
 //!   [`dataset`]: an Ultralytics/YOLO dataset of such shots.
 
@@ -24,6 +25,7 @@ mod pipeline;
 pub mod renderer;
 pub mod scene;
 pub mod sensor;
+mod sensor_reference;
 pub mod shot;
 mod targets;
 pub mod window;

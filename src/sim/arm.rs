@@ -329,8 +329,8 @@ fn with_joint_mut(
 }
 
 impl SimArm {
-    /// Tags every robot collider as [`Tag::Robot`]; finger pads get `pad_friction`, the rest of
-    /// the robot a moderate one.
+    /// Tags every robot collider as [`Tag::Robot`] and puts it in the robot's collision groups;
+    /// finger pads get `pad_friction`, the rest of the robot a moderate one.
     pub fn dress_colliders(&self, world: &mut World, pad_friction: f64) {
         let physics = &mut world.physics;
         for (name, body) in self.link_bodies() {
@@ -358,6 +358,7 @@ impl SimArm {
                         collider.set_active_hooks(ActiveHooks::MODIFY_SOLVER_CONTACTS);
                     }
                     collider.user_data = Tag::Robot as u128;
+                    collider.set_collision_groups(super::groups::robot());
                 }
             }
         }

@@ -15,5 +15,5 @@ pub use conveyor::ConveyorHooks;
 pub use error::SimError;
 pub use items::{BottleItem, BottlePlacement, ItemSet, PartItem, body_pose};
 pub use part::{BoreForm, PartInstance};
-pub use tag::Tag;
+pub use tag::{Tag, groups};
 pub use world::{World, WorldParams};
