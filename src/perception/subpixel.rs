@@ -296,28 +296,7 @@ impl Flank {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::perception::synthetic::{BoreShape, Illumination, Noise, Scene, Tube};
-
-    fn disc_scene(cx: f64, cy: f64, r: f64) -> GrayImage {
-        Scene {
-            width_px: 160,
-            height_px: 160,
-            belt_level: 40.0,
-            tubes: vec![Tube {
-                centre_px: [cx, cy],
-                bore: BoreShape::Circle { radius_px: r },
-                outer_radius_px: r + 20.0,
-                rim_level: 200.0,
-                bore_level: 20.0,
-            }],
-            bottles: vec![],
-            stains: vec![],
-            illumination: Illumination::EVEN,
-            noise: Noise::NONE,
-            noise_seed: 0,
-        }
-        .render()
-    }
+    use crate::perception::synthetic::disc_scene;
 
     #[test]
     fn rays_find_an_anti_aliased_circle_to_a_few_hundredths() {

@@ -441,6 +441,30 @@ fn bottle_reflectance(bottle: &Bottle, x: f64, y: f64) -> Option<f64> {
     }
 }
 
+/// One tube on an even, noiseless 160 x 160 frame: bore radius `r` at `(cx, cy)`, rim 20 px wide.
+/// A fixture for the ray and edge tests.
+#[cfg(test)]
+pub(crate) fn disc_scene(cx: f64, cy: f64, r: f64) -> image::GrayImage {
+    Scene {
+        width_px: 160,
+        height_px: 160,
+        belt_level: 40.0,
+        tubes: vec![Tube {
+            centre_px: [cx, cy],
+            bore: BoreShape::Circle { radius_px: r },
+            outer_radius_px: r + 20.0,
+            rim_level: 200.0,
+            bore_level: 20.0,
+        }],
+        bottles: vec![],
+        stains: vec![],
+        illumination: Illumination::EVEN,
+        noise: Noise::NONE,
+        noise_seed: 0,
+    }
+    .render()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

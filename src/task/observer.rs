@@ -4,7 +4,7 @@
 //! time from the physics loop, when perception has looked at the pick station, and with the
 //! trial's record at the end. Observers get read-only views: they cannot change what a trial
 //! does, so a batch's records are the same with and without one. The cell knows nothing of any
-//! particular observer (see `crate::record` for the Rerun recorder).
+//! particular observer (the `record` module holds the Rerun recorder).
 
 use nalgebra::Isometry3;
 use rapier3d::prelude::RigidBodyHandle;
