@@ -236,6 +236,7 @@ fn perception_frame(scenario: &Scenario) -> PerceptionFrame {
         image,
         detections,
         bores,
+        station: Some(scenario.part_types[0].name.clone()),
     }
 }
 

@@ -14,7 +14,7 @@ use super::progress_bar::ProgressBar;
 use super::resume::open_for_resume;
 use super::{
     BatchError, BatchManifest, BatchPlan, BatchReport, FailureReason, Outcome, ReportMeta,
-    TrialRecord, TrialRunner, junit_xml, trial_seed,
+    TrialRecord, TrialRunner, junit_xml, remove_trial_images, trial_seed,
 };
 
 /// File name of the trial records, one JSON object a line.
@@ -77,8 +77,9 @@ pub fn run_batch(
 /// Runs the trials of `plan` with `runner` and writes `batch.json`, `trials.jsonl`,
 /// `report.json` and `junit.xml` into `out_dir` (created if missing).
 ///
-/// - First `batch.json` says which batch the directory holds, and reports of an earlier run
-///   are removed, so a directory never pairs old reports with new records.
+/// - First `batch.json` says which batch the directory holds, and reports (and, unless
+///   resuming, camera frames in `images/`) of an earlier run are removed, so a directory
+///   never pairs old reports or frames with new records.
 /// - Trial `i` gets seed [`trial_seed`]`(plan.scenario_seed, i)`; with a shard, only the
 ///   trials with `i % N == I` run.
 /// - Up to [`BatchPlan::worker_count`] trials run at once. A trial that panics becomes a
@@ -119,6 +120,8 @@ pub fn run_batch_with(
         open_for_resume(out_dir, &manifest, &indices)?
     } else {
         manifest.write(out_dir)?;
+        // The camera frames of an earlier batch in this directory belong to its records.
+        remove_trial_images(out_dir)?;
         let file = File::create(&trials_path).map_err(|source| BatchError::Write {
             path: trials_path.clone(),
             source,

@@ -1,16 +1,17 @@
 //! `report.html`: one self-contained page (no scripts, no network) over one or more batches:
-//! the summary table, success with its Wilson interval per batch, failures by reason and a
-//! histogram of cycle times, the plots drawn by `plotters` into inline SVG.
+//! the summary table, success with its Wilson interval per batch, failures by reason, the
+//! accept/reject and type confusion matrices, measured against true roundness, a histogram of
+//! cycle times (the plots drawn by `plotters` into inline SVG), and every failed or misjudged
+//! trial with its camera frame embedded.
 
-use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::fs;
 use std::path::{Path, PathBuf};
 
-use plotters::prelude::*;
-
+use super::html_trials::{PageSorting, TrialCard, cards_html, read_records, trial_card};
 use super::suite::BatchRow;
-use super::{BatchReport, Outcome, TRIALS_FILE, TrialRecord, xml_escape};
+use super::{BatchReport, Outcome, Perception, xml_escape};
+use crate::scenario::Scenario;
 
 /// File name of the page.
 pub const HTML_FILE: &str = "report.html";
@@ -44,21 +45,34 @@ pub enum HtmlError {
     },
 }
 
-fn plot_error<E: std::fmt::Display>(plot: &'static str) -> impl Fn(E) -> HtmlError {
-    move |e| HtmlError::Plot {
-        plot,
-        reason: e.to_string(),
+/// The roundness tolerance and the uncertainty band about it, as the scatter plot draws them.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RoundnessLimits {
+    /// Parts with a true roundness up to this conform, mm.
+    pub tolerance_mm: f64,
+    /// Half-width of the band about the tolerance where either verdict counts as right, mm.
+    pub uncertainty_mm: f64,
+}
+
+impl RoundnessLimits {
+    /// The limits of `scenario`.
+    pub fn of(scenario: &Scenario) -> Self {
+        Self {
+            tolerance_mm: scenario.roundness_tolerance_mm,
+            uncertainty_mm: scenario.roundness_uncertainty_mm,
+        }
+    }
+
+    /// The limits all `scenarios` share; `None` when they differ or there are none.
+    pub fn shared<'a>(scenarios: impl IntoIterator<Item = &'a Scenario>) -> Option<Self> {
+        let mut limits = scenarios.into_iter().map(Self::of);
+        let first = limits.next()?;
+        limits.all(|l| l == first).then_some(first)
     }
 }
 
-/// The upper end of a segmented range of `count` rows. Such a range holds both its ends, so
-/// `count - 1` leaves no empty slot; but plotters labels no segment of a one-value range, which
-/// one row therefore shares with an empty slot.
-fn last_segment(count: u32) -> u32 {
-    if count > 1 { count - 1 } else { 1 }
-}
-
-/// What a page shows: a title, a note on the perception mode, and labelled batches.
+/// What a page shows: a title, a note on the perception mode, labelled batches, and what their
+/// records say.
 #[derive(Debug, Clone)]
 pub struct HtmlPage {
     /// Page title.
@@ -69,56 +83,70 @@ pub struct HtmlPage {
     pub rows: Vec<(String, BatchRow)>,
     /// Cycle times of every successful trial over the batches, s.
     pub cycle_times_s: Vec<f64>,
+    /// Decisions against the truth over the batches.
+    pub sorting: PageSorting,
+    /// The tolerance and band the scatter plot draws, when the batches share them.
+    pub roundness_limits: Option<RoundnessLimits>,
+    /// Every failed or misjudged trial, batch by batch in trial order.
+    pub cards: Vec<TrialCard>,
 }
 
 /// Simulated cycle times of the successful trials in `dir/trials.jsonl`, s.
 pub fn successful_cycle_times(dir: &Path) -> Result<Vec<f64>, HtmlError> {
-    let path = dir.join(TRIALS_FILE);
-    let text = fs::read_to_string(&path).map_err(|e| HtmlError::Records {
-        path: path.clone(),
-        reason: e.to_string(),
-    })?;
-    let mut times = Vec::new();
-    for line in text.lines().filter(|l| !l.trim().is_empty()) {
-        let record: TrialRecord = serde_json::from_str(line).map_err(|e| HtmlError::Records {
-            path: path.clone(),
-            reason: e.to_string(),
-        })?;
-        if record.outcome == Outcome::Success {
-            times.push(record.cycle_time_s);
-        }
-    }
-    Ok(times)
+    Ok(read_records(dir)?
+        .iter()
+        .filter(|r| r.outcome == Outcome::Success)
+        .map(|r| r.cycle_time_s)
+        .collect())
 }
 
 impl HtmlPage {
     /// The page of one batch (`twincell run`) whose files are in `dir`.
     pub fn for_batch(report: &BatchReport, dir: &Path) -> Result<Self, HtmlError> {
+        let title = format!("twincell run: {} (seed {})", report.scenario, report.seed);
+        let rows = vec![(report.scenario.clone(), BatchRow::from_report(report, "."))];
         Ok(Self {
-            title: format!("twincell run: {} (seed {})", report.scenario, report.seed),
             note: report.perception_note.clone(),
-            rows: vec![(report.scenario.clone(), BatchRow::from_report(report, "."))],
-            cycle_times_s: successful_cycle_times(dir)?,
+            ..Self::for_rows(&title, report.perception, rows, dir)?
         })
     }
 
-    /// The page of several batches, each row's files in `root/row.dir`.
+    /// The page of several batches run with `perception`, each row's files in
+    /// `root/row.dir`.
     pub fn for_rows(
         title: &str,
-        note: &str,
+        perception: Perception,
         rows: Vec<(String, BatchRow)>,
         root: &Path,
     ) -> Result<Self, HtmlError> {
         let mut cycle_times_s = Vec::new();
-        for (_, row) in &rows {
-            cycle_times_s.extend(successful_cycle_times(&root.join(&row.dir))?);
+        let mut sorting = PageSorting::default();
+        let mut cards = Vec::new();
+        for (label, row) in &rows {
+            let dir = root.join(&row.dir);
+            for record in read_records(&dir)? {
+                if record.outcome == Outcome::Success {
+                    cycle_times_s.push(record.cycle_time_s);
+                }
+                sorting.add(&record);
+                cards.extend(trial_card(label, &dir, perception, &record)?);
+            }
         }
         Ok(Self {
             title: title.to_owned(),
-            note: note.to_owned(),
+            note: perception.note().to_owned(),
             rows,
             cycle_times_s,
+            sorting,
+            roundness_limits: None,
+            cards,
         })
+    }
+
+    /// The page with the scatter plot's tolerance and band.
+    pub fn with_roundness_limits(mut self, limits: Option<RoundnessLimits>) -> Self {
+        self.roundness_limits = limits;
+        self
     }
 
     /// The page as HTML.
@@ -131,7 +159,13 @@ impl HtmlPage {
              body{{font-family:sans-serif;margin:1.5em;color:#222}}\
              table{{border-collapse:collapse}}td,th{{border:1px solid #bbb;padding:3px 8px}}\
              td.n{{text-align:right}}.fail{{color:#b00;font-weight:bold}}\
-             figure{{margin:1em 0}}</style></head><body>\n<h1>{title}</h1>\n<p>{note}</p>\n",
+             figure{{margin:1em 0}}.small{{font-size:85%;color:#555}}\
+             .cards{{display:flex;flex-wrap:wrap;gap:12px}}\
+             .card{{width:320px;margin:0;border:1px solid #ccc;padding:4px;font-size:85%}}\
+             .card img{{display:block;width:320px;height:auto}}\
+             .noimg{{width:320px;height:60px;background:#eee;color:#555;padding:4px;\
+             box-sizing:border-box}}</style></head><body>\n\
+             <h1>{title}</h1>\n<p>{note}</p>\n",
             title = xml_escape(&self.title),
             note = xml_escape(&self.note)
         );
@@ -140,9 +174,23 @@ impl HtmlPage {
         html.push_str(&self.success_svg()?);
         html.push_str("</figure>\n<h2>Failures by reason</h2>\n<figure>");
         html.push_str(&self.failures_svg()?);
+        html.push_str("</figure>\n<h2>Accept or reject against the truth</h2>\n");
+        html.push_str(&self.sorting.accept_reject_table());
+        html.push_str("<h2>Part type against the truth</h2>\n");
+        html.push_str(&self.sorting.type_table());
+        html.push_str("<h2>Measured against true roundness</h2>\n<figure>");
+        html.push_str(&self.roundness_svg()?);
         html.push_str("</figure>\n<h2>Cycle time of the successful trials</h2>\n<figure>");
         html.push_str(&self.cycle_svg()?);
-        html.push_str("</figure>\n</body></html>\n");
+        let _ = write!(
+            html,
+            "</figure>\n<h2>Failed and misjudged trials ({})</h2>\n\
+             <p class=\"small\">Camera frames with the detector's boxes (parts amber, bottles \
+             magenta), the fitted bore (red) and its edge points (green).</p>\n",
+            self.cards.len()
+        );
+        html.push_str(&cards_html(&self.cards));
+        html.push_str("</body></html>\n");
         Ok(html)
     }
 
@@ -199,208 +247,15 @@ impl HtmlPage {
         out.push_str("</table>\n");
         out
     }
-
-    /// Short x labels: the rows' labels when they are short, else their numbers.
-    fn x_label(&self, i: usize) -> String {
-        let long = self.rows.iter().any(|(label, _)| label.len() > 22);
-        match self.rows.get(i) {
-            Some((label, _)) if !long => label.clone(),
-            Some(_) => format!("#{i}"),
-            None => String::new(),
-        }
-    }
-
-    fn success_svg(&self) -> Result<String, HtmlError> {
-        let err = plot_error("success");
-        let n = u32::try_from(self.rows.len()).unwrap_or(u32::MAX).max(1);
-        let mut svg = String::new();
-        {
-            let root = SVGBackend::with_string(&mut svg, (760, 340)).into_drawing_area();
-            root.fill(&WHITE).map_err(&err)?;
-            let mut chart = ChartBuilder::on(&root)
-                .margin(12)
-                .x_label_area_size(36)
-                .y_label_area_size(52)
-                .build_cartesian_2d((0..last_segment(n)).into_segmented(), 0f64..1.02)
-                .map_err(&err)?;
-            chart
-                .configure_mesh()
-                .label_style(("sans-serif", 13))
-                .axis_desc_style(("sans-serif", 14))
-                .disable_x_mesh()
-                .y_desc("success rate")
-                .x_labels(self.rows.len().max(1))
-                .x_label_formatter(&|v| match v {
-                    SegmentValue::CenterOf(i) => self.x_label(*i as usize),
-                    _ => String::new(),
-                })
-                .draw()
-                .map_err(&err)?;
-            let at = |i: usize| SegmentValue::CenterOf(u32::try_from(i).unwrap_or(u32::MAX));
-            let band: Vec<_> = self
-                .rows
-                .iter()
-                .enumerate()
-                .map(|(i, (_, r))| (at(i), r.wilson95[1]))
-                .chain(
-                    self.rows
-                        .iter()
-                        .enumerate()
-                        .rev()
-                        .map(|(i, (_, r))| (at(i), r.wilson95[0])),
-                )
-                .collect();
-            chart
-                .draw_series(std::iter::once(Polygon::new(band, BLUE.mix(0.15))))
-                .map_err(&err)?;
-            let line: Vec<_> = self
-                .rows
-                .iter()
-                .enumerate()
-                .map(|(i, (_, r))| (at(i), r.success_rate))
-                .collect();
-            chart
-                .draw_series(std::iter::once(PathElement::new(
-                    line,
-                    BLUE.stroke_width(2),
-                )))
-                .map_err(&err)?;
-            chart
-                .draw_series(self.rows.iter().enumerate().map(|(i, (_, r))| {
-                    PathElement::new(
-                        vec![(at(i), r.wilson95[0]), (at(i), r.wilson95[1])],
-                        BLACK.stroke_width(1),
-                    )
-                }))
-                .map_err(&err)?;
-            chart
-                .draw_series(
-                    self.rows
-                        .iter()
-                        .enumerate()
-                        .map(|(i, (_, r))| Circle::new((at(i), r.success_rate), 4, BLUE.filled())),
-                )
-                .map_err(&err)?;
-            root.present().map_err(&err)?;
-        }
-        Ok(svg)
-    }
-
-    fn failures_svg(&self) -> Result<String, HtmlError> {
-        let err = plot_error("failures");
-        let mut totals: BTreeMap<&str, u32> = BTreeMap::new();
-        for (_, row) in &self.rows {
-            for (reason, n) in &row.failures {
-                *totals.entry(reason.as_str()).or_default() += n;
-            }
-        }
-        let reasons: Vec<(&str, u32)> = totals.into_iter().collect();
-        let k = u32::try_from(reasons.len()).unwrap_or(u32::MAX).max(1);
-        let most = reasons.iter().map(|(_, n)| *n).max().unwrap_or(0).max(1);
-        let mut svg = String::new();
-        {
-            let height = 80 + 28 * k;
-            let root = SVGBackend::with_string(&mut svg, (760, height)).into_drawing_area();
-            root.fill(&WHITE).map_err(&err)?;
-            let mut chart = ChartBuilder::on(&root)
-                .margin(12)
-                .x_label_area_size(36)
-                .y_label_area_size(170)
-                .build_cartesian_2d(0u32..most + 1, (0..last_segment(k)).into_segmented())
-                .map_err(&err)?;
-            chart
-                .configure_mesh()
-                .label_style(("sans-serif", 13))
-                .axis_desc_style(("sans-serif", 14))
-                .disable_y_mesh()
-                .x_desc(if reasons.is_empty() {
-                    "no failures"
-                } else {
-                    "trials failed, all batches"
-                })
-                .y_labels(reasons.len().max(1))
-                .y_label_formatter(&|v| match v {
-                    SegmentValue::CenterOf(i) => reasons
-                        .get(*i as usize)
-                        .map_or(String::new(), |(r, _)| (*r).to_owned()),
-                    _ => String::new(),
-                })
-                .draw()
-                .map_err(&err)?;
-            chart
-                .draw_series(reasons.iter().zip(0u32..).map(|((_, n), i)| {
-                    let mut bar = Rectangle::new(
-                        [
-                            (0, SegmentValue::Exact(i)),
-                            (*n, SegmentValue::Exact(i + 1)),
-                        ],
-                        RED.mix(0.6).filled(),
-                    );
-                    bar.set_margin(3, 3, 0, 0);
-                    bar
-                }))
-                .map_err(&err)?;
-            root.present().map_err(&err)?;
-        }
-        Ok(svg)
-    }
-
-    fn cycle_svg(&self) -> Result<String, HtmlError> {
-        let err = plot_error("cycle time");
-        let times = &self.cycle_times_s;
-        let low = times.iter().copied().fold(f64::INFINITY, f64::min);
-        let high = times.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-        let (low, high) = if low.is_finite() && high.is_finite() {
-            (low, high)
-        } else {
-            (0.0, 1.0)
-        };
-        let width = ((high - low) / 20.0).max(0.1);
-        let bins = ((high - low) / width).floor() as usize + 1;
-        let mut counts = vec![0u32; bins];
-        for t in times {
-            let bin = (((t - low) / width).floor() as usize).min(bins - 1);
-            counts[bin] += 1;
-        }
-        let most = counts.iter().copied().max().unwrap_or(0).max(1);
-        let mut svg = String::new();
-        {
-            let root = SVGBackend::with_string(&mut svg, (760, 300)).into_drawing_area();
-            root.fill(&WHITE).map_err(&err)?;
-            let x_end = low + width * bins as f64;
-            let mut chart = ChartBuilder::on(&root)
-                .margin(12)
-                .x_label_area_size(40)
-                .y_label_area_size(52)
-                .build_cartesian_2d(low..x_end, 0u32..most + 1)
-                .map_err(&err)?;
-            chart
-                .configure_mesh()
-                .label_style(("sans-serif", 13))
-                .axis_desc_style(("sans-serif", 14))
-                .x_desc(if times.is_empty() {
-                    "no successful trial"
-                } else {
-                    "simulated cycle time, s"
-                })
-                .y_desc("trials")
-                .draw()
-                .map_err(&err)?;
-            chart
-                .draw_series(counts.iter().enumerate().map(|(i, &c)| {
-                    let x0 = low + width * i as f64;
-                    Rectangle::new([(x0, 0), (x0 + width, c)], GREEN.mix(0.6).filled())
-                }))
-                .map_err(&err)?;
-            root.present().map_err(&err)?;
-        }
-        Ok(svg)
-    }
 }
 
 #[cfg(test)]
 mod tests {
-    use super::super::{Perception, ReportMeta};
+    use super::super::html_trials::CardImage;
+    use super::super::{
+        DecisionRecord, Misidentification, PartRecord, ReportMeta, StreamRecord, TRIALS_FILE,
+        TrialRecord, trial_image_path,
+    };
     use super::*;
     use crate::outcome::FailureReason;
 
@@ -428,16 +283,26 @@ mod tests {
         BatchRow::from_report(&BatchReport::from_records(&meta, &records), "d")
     }
 
-    #[test]
-    fn the_page_holds_the_table_and_three_plots_and_nothing_external() {
-        let page = HtmlPage {
+    fn page(rows: Vec<(String, BatchRow)>, cycle_times_s: Vec<f64>) -> HtmlPage {
+        HtmlPage {
             title: "t & t".into(),
             note: "oracle".into(),
-            rows: vec![("a<b".into(), row(9, 1)), ("c".into(), row(3, 3))],
-            cycle_times_s: vec![17.0, 17.4, 18.2, 18.25],
-        };
+            rows,
+            cycle_times_s,
+            sorting: PageSorting::default(),
+            roundness_limits: None,
+            cards: Vec::new(),
+        }
+    }
+
+    #[test]
+    fn the_page_holds_the_table_and_four_plots_and_nothing_external() {
+        let page = page(
+            vec![("a<b".into(), row(9, 1)), ("c".into(), row(3, 3))],
+            vec![17.0, 17.4, 18.2, 18.25],
+        );
         let html = page.render().expect("page");
-        assert_eq!(html.matches("<svg").count(), 3, "{html}");
+        assert_eq!(html.matches("<svg").count(), 4, "{html}");
         assert!(html.contains("a&lt;b") && !html.contains("a<b"));
         assert!(html.contains("collision 1") && html.contains("collision 3"));
         assert!(html.contains("FAILED"), "the second row misses its gate");
@@ -451,14 +316,171 @@ mod tests {
 
     #[test]
     fn an_empty_page_still_draws() {
-        let page = HtmlPage {
-            title: "empty".into(),
-            note: String::new(),
-            rows: vec![("none".into(), row(0, 0))],
-            cycle_times_s: Vec::new(),
-        };
+        let page = page(vec![("none".into(), row(0, 0))], Vec::new());
         let html = page.render().expect("page");
-        assert_eq!(html.matches("<svg").count(), 3);
+        assert_eq!(html.matches("<svg").count(), 4);
         assert!(html.contains("no failures") && html.contains("no successful trial"));
+        assert!(html.contains("no part measured") && html.contains("No trial failed"));
+    }
+
+    fn part(part_type: &str, roundness_mm: f64) -> PartRecord {
+        PartRecord {
+            part_type: part_type.into(),
+            true_roundness_mm: roundness_mm,
+            true_bore_diameter_mm: 28.0,
+            truly_acceptable: roundness_mm <= 0.5,
+            clear_cut: (roundness_mm - 0.5).abs() > 0.05,
+            correct_bin: if roundness_mm <= 0.5 {
+                "group_b"
+            } else {
+                "reject"
+            }
+            .into(),
+        }
+    }
+
+    fn decided(i: u32, part: PartRecord, detected: &str, measured_mm: f64) -> TrialRecord {
+        let accept = measured_mm <= 0.5;
+        let mut r = TrialRecord::failed(i, u64::from(i) + 100, FailureReason::WrongBin, "w");
+        r.decision = Some(DecisionRecord {
+            detected_type: detected.into(),
+            measured_roundness_mm: Some(measured_mm),
+            measured_bore_diameter_mm: Some(28.1),
+            accept,
+            bin: if accept { "group_b" } else { "reject" }.into(),
+            note: None,
+        });
+        r.placed_bin = Some(r.decision.as_ref().map_or(String::new(), |d| d.bin.clone()));
+        if accept == part.truly_acceptable || !part.clear_cut {
+            r.outcome = Outcome::Success;
+            r.failure = None;
+            r.detail = None;
+            r.cycle_time_s = 18.0;
+        }
+        r.part = Some(part);
+        r
+    }
+
+    /// A batch directory with records of every kind the page reads, and one camera frame.
+    fn batch_dir(name: &str) -> std::path::PathBuf {
+        let dir = std::env::temp_dir().join(format!("twincell-html-{name}-{}", std::process::id()));
+        let _ = fs::remove_dir_all(&dir);
+        fs::create_dir_all(&dir).expect("dir");
+        let mut stream = TrialRecord::failed(4, 104, FailureReason::Misidentified, "took it");
+        stream.stream = Some(StreamRecord {
+            parts_planned: 3,
+            parts_sorted: 0,
+            bottles_passed: 2,
+            belt_stops: 3,
+            parts: Vec::new(),
+            misidentified: Some(Misidentification {
+                truth: "bottle".into(),
+                identified: "axle_b28".into(),
+            }),
+        });
+        let mut missed = TrialRecord::failed(5, 105, FailureReason::NotDetected, "nothing");
+        missed.part = Some(part("axle_b32", 0.1));
+        let records = [
+            decided(0, part("axle_b28", 0.2), "axle_b28", 0.21),
+            // Wrong verdict, clear-cut: a failure.
+            decided(1, part("axle_b28", 0.8), "axle_b28", 0.45),
+            // Inside the band, rejected while conforming: a misjudged success.
+            decided(2, part("axle_b28", 0.48), "axle_b28", 0.52),
+            // Right verdict on the wrong type.
+            decided(3, part("axle_b32", 0.1), "axle_b28", 0.12),
+            stream,
+            missed,
+        ];
+        let text: String = records
+            .iter()
+            .map(|r| serde_json::to_string(r).expect("json") + "\n")
+            .collect();
+        fs::write(dir.join(TRIALS_FILE), text).expect("records");
+        let image = image::RgbImage::from_pixel(32, 24, image::Rgb([200, 10, 10]));
+        let mut jpeg = Vec::new();
+        image::codecs::jpeg::JpegEncoder::new(&mut jpeg)
+            .encode_image(&image)
+            .expect("jpeg");
+        let path = trial_image_path(&dir, 1);
+        fs::create_dir_all(path.parent().expect("parent")).expect("images dir");
+        fs::write(path, jpeg).expect("image");
+        dir
+    }
+
+    #[test]
+    fn the_page_reads_decisions_and_frames_from_the_records() {
+        let dir = batch_dir("camera");
+        let page = HtmlPage::for_rows("t", Perception::Camera, vec![("b".into(), row(1, 0))], &dir)
+            .map(|p| {
+                p.with_roundness_limits(Some(RoundnessLimits {
+                    tolerance_mm: 0.5,
+                    uncertainty_mm: 0.05,
+                }))
+            });
+        // The row's dir is "d", which does not exist: the records are read from there.
+        assert!(page.is_err());
+        let mut only = row(1, 0);
+        only.dir = ".".into();
+        let page = HtmlPage::for_rows("t", Perception::Camera, vec![("b".into(), only)], &dir)
+            .expect("page")
+            .with_roundness_limits(Some(RoundnessLimits {
+                tolerance_mm: 0.5,
+                uncertainty_mm: 0.05,
+            }));
+        let c = &page.sorting.accept_reject;
+        assert_eq!((c.truly_accept.accept, c.truly_accept.reject), (2, 1));
+        assert_eq!((c.truly_reject.accept, c.truly_reject.reject), (1, 0));
+        assert_eq!(page.sorting.in_band, 1);
+        let types = &page.sorting.types;
+        assert_eq!(types["axle_b28"]["axle_b28"], 3);
+        assert_eq!(types["axle_b32"]["axle_b28"], 1);
+        assert_eq!(types["axle_b32"]["not detected"], 1);
+        assert_eq!(types["bottle"]["bottle"], 2);
+        assert_eq!(types["bottle"]["axle_b28"], 1);
+        assert_eq!(page.sorting.roundness_mm.len(), 4);
+        // Failed (1, 4, 5) and misjudged (2, 3) trials get cards, in trial order; only trial 1
+        // has a frame on disk.
+        let cards: Vec<(u32, &str)> = page
+            .cards
+            .iter()
+            .map(|c| (c.trial, c.reason.as_str()))
+            .collect();
+        assert_eq!(
+            cards,
+            [
+                (1, "wrong_bin"),
+                (2, "misjudged"),
+                (3, "misjudged"),
+                (4, "misidentified"),
+                (5, "not_detected")
+            ]
+        );
+        assert!(matches!(page.cards[0].image, CardImage::Jpeg(_)));
+        assert!(
+            page.cards[1..]
+                .iter()
+                .all(|c| c.image == CardImage::Missing)
+        );
+        assert!(
+            page.cards[1].judgement.contains("(misjudged)"),
+            "{:?}",
+            page.cards[1]
+        );
+        let html = page.render().expect("render");
+        assert_eq!(html.matches("<svg").count(), 4);
+        assert_eq!(html.matches("src=\"data:image/jpeg;base64,").count(), 1);
+        assert_eq!(html.matches("no camera frame").count(), 4);
+        assert_eq!(html.matches("<table class=\"cm\">").count(), 2);
+        assert!(html.contains("<th>not detected</th>") && html.contains("<th>bottle</th>"));
+        let oracle = HtmlPage::for_rows("t", Perception::Oracle, page.rows.clone(), &dir)
+            .expect("page")
+            .render()
+            .expect("render");
+        assert_eq!(
+            oracle.matches("oracle perception: no camera image").count(),
+            5
+        );
+        assert!(!oracle.contains("data:image"));
+        let _ = fs::remove_dir_all(&dir);
     }
 }

@@ -9,7 +9,8 @@ use serde::Deserialize;
 
 use super::{
     BatchError, BatchReport, MANIFEST_FILE, Perception, REPORT_FILE, ReportMeta, ResumeError,
-    Shard, TRIALS_FILE, TrialRecord, parse_trial_lines, read_manifest, trial_seed, write_reports,
+    Shard, TRIALS_FILE, TrialRecord, copy_trial_images, parse_trial_lines, read_manifest,
+    trial_seed, write_reports,
 };
 
 /// Why shard outputs could not be merged.
@@ -207,7 +208,8 @@ struct ShardLine {
 /// Merges the shard directories `dirs` (each holding `trials.jsonl` and `report.json` from
 /// `twincell run --shard`) into `out_dir`: `trials.jsonl` in trial order with each line copied
 /// byte for byte, so it equals an unsharded run's (timing aside), plus `report.json` and
-/// `junit.xml` built from the merged records.
+/// `junit.xml` built from the merged records, and each merged trial's camera frame from its
+/// shard's `images/`.
 ///
 /// All shards must share scenario, seed, perception, trial count and shard count; every record
 /// must carry its derived seed, lie in its shard, and appear in only one shard. A shard that
@@ -349,6 +351,12 @@ pub fn merge_shards(
         path: trials_path.clone(),
         source,
     })?;
+    copy_trial_images(
+        by_trial
+            .iter()
+            .map(|(&trial, l)| (trial, l.path.parent().unwrap_or(Path::new(".")))),
+        out_dir,
+    )?;
     let records: Vec<TrialRecord> = by_trial.into_values().map(|l| l.record).collect();
     let meta = ReportMeta {
         scenario: header.scenario,

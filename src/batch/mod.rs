@@ -6,6 +6,8 @@ mod batch_plan;
 mod batch_runner;
 mod error;
 mod html;
+mod html_plots;
+mod html_trials;
 mod interrupt;
 mod junit;
 mod merge;
@@ -17,10 +19,11 @@ mod resume;
 mod suite;
 mod summary_table;
 mod sweep;
+mod trial_images;
 
 pub use crate::outcome::{
-    DecisionRecord, FailureReason, Outcome, PartRecord, Perception, StreamPartRecord, StreamRecord,
-    TrialRecord, TrialRunner, TrialTiming,
+    DecisionRecord, FailureReason, Misidentification, Outcome, PartRecord, Perception,
+    StreamPartRecord, StreamRecord, TrialRecord, TrialRunner, TrialTiming,
 };
 
 pub use batch_manifest::{BatchManifest, MANIFEST_FILE};
@@ -30,7 +33,8 @@ pub use batch_runner::{
     write_reports,
 };
 pub use error::BatchError;
-pub use html::{HTML_FILE, HtmlError, HtmlPage, successful_cycle_times};
+pub use html::{HTML_FILE, HtmlError, HtmlPage, RoundnessLimits, successful_cycle_times};
+pub use html_trials::{BOTTLE, CardImage, NOT_DETECTED, PageSorting, TrialCard, read_records};
 pub use interrupt::cancel_on_signals;
 pub use junit::{junit_xml, testcase_name, xml_escape};
 pub use merge::{MergeError, MergeSummary, merge_shards};
@@ -45,3 +49,7 @@ pub use resume::{
 };
 pub use suite::{BatchRow, SuiteReport, write_json_report};
 pub use sweep::{SweepAxisReport, SweepPoint, SweepReport};
+pub use trial_images::{
+    IMAGES_DIR, THUMBNAIL_WIDTH_PX, TrialImages, annotated_thumbnail, copy_trial_images,
+    decision_misjudged, remove_trial_images, trial_image_path, wants_image,
+};

@@ -1,11 +1,12 @@
 //! The options `suite` and `sweep` share with `run`, and one batch run through them.
 
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 
 use anyhow::Result;
 use clap::Args;
-use twincell::batch::{BatchPlan, BatchSummary, Perception, Shard, run_batch};
+use twincell::batch::{BatchPlan, BatchSummary, Perception, Shard, TrialImages, run_batch};
 use twincell::scenario::Scenario;
 use twincell::task::CellTrialRunner;
 
@@ -75,11 +76,14 @@ impl BatchOptions {
             shard: self.shard,
             min_success: self.min_success,
         };
-        let runner = match &self.model {
+        let mut runner = match &self.model {
             Some(model) => CellTrialRunner::with_model(scenario, path, self.perception, model),
             None => CellTrialRunner::new(scenario, path, self.perception),
         }
         .map_err(|e| BadInput(format!("{}: {e}", path.display())))?;
+        if self.perception == Perception::Camera {
+            runner.observe_with(Arc::new(TrialImages::new(out)));
+        }
         Ok(run_batch(&runner, &plan, out, cancel, !self.json)?)
     }
 }

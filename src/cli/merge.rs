@@ -5,7 +5,7 @@ use std::process::ExitCode;
 
 use anyhow::Result;
 use clap::Args;
-use twincell::batch::{exit_code, merge_shards};
+use twincell::batch::{HtmlPage, exit_code, merge_shards};
 
 use super::BadInput;
 
@@ -15,7 +15,8 @@ pub struct MergeArgs {
     /// Shard output directories, each holding `trials.jsonl` and `report.json`.
     #[arg(required = true, value_name = "DIR")]
     dirs: Vec<PathBuf>,
-    /// Directory for the merged `trials.jsonl`, `report.json` and `junit.xml`.
+    /// Directory for the merged `trials.jsonl`, `report.json`, `junit.xml`, `report.html` and
+    /// the shards' camera frames (`images/`).
     #[arg(long, value_name = "DIR")]
     out: PathBuf,
     /// Least success rate that passes, in [0, 1] (exit code 1 below it).
@@ -33,6 +34,7 @@ pub fn run(args: &MergeArgs) -> Result<ExitCode> {
         Err(err) if err.is_bad_input() => return Err(BadInput(err.to_string()).into()),
         Err(err) => return Err(err.into()),
     };
+    HtmlPage::for_batch(&summary.report, &args.out)?.write(&args.out)?;
     if args.json {
         println!("{}", serde_json::to_string_pretty(&summary.report)?);
     } else {

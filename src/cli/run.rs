@@ -9,7 +9,8 @@ use anyhow::Result;
 use clap::Args;
 use sha2::{Digest, Sha256};
 use twincell::batch::{
-    BatchOptions, BatchPlan, BatchSummary, Perception, Shard, cancel_on_signals, run_batch_with,
+    BatchOptions, BatchPlan, BatchSummary, HtmlPage, Perception, RoundnessLimits, Shard,
+    TrialImages, cancel_on_signals, run_batch_with,
 };
 #[cfg(feature = "record")]
 use twincell::record::{DEFAULT_VIEWER_ADDR, RerunRecorder};
@@ -122,7 +123,6 @@ pub fn run_scenario(args: &RunArgs, progress: bool) -> Result<BatchSummary> {
         shard: args.shard,
         min_success: args.min_success,
     };
-    #[cfg_attr(not(feature = "record"), allow(unused_mut))]
     let mut runner = match &args.model {
         Some(model) => {
             CellTrialRunner::with_model(scenario, &args.scenario, args.perception, model)
@@ -130,12 +130,16 @@ pub fn run_scenario(args: &RunArgs, progress: bool) -> Result<BatchSummary> {
         None => CellTrialRunner::new(scenario, &args.scenario, args.perception),
     }
     .map_err(|e| BadInput(format!("{}: {e}", args.scenario.display())))?;
+    if args.perception == Perception::Camera {
+        runner.observe_with(Arc::new(TrialImages::new(args.out_dir())));
+    }
     #[cfg(feature = "record")]
     let recorder = recorder(args, &plan)?;
     #[cfg(feature = "record")]
     if let Some(recorder) = &recorder {
         runner.observe_with(Arc::new(recorder.clone()));
     }
+    let limits = RoundnessLimits::of(runner.scenario());
     let cancel = Arc::new(AtomicBool::new(false));
     cancel_on_signals(&cancel)?;
     let options = BatchOptions {
@@ -150,7 +154,9 @@ pub fn run_scenario(args: &RunArgs, progress: bool) -> Result<BatchSummary> {
                 e.into()
             }
         })?;
-    twincell::batch::HtmlPage::for_batch(&summary.report, args.out_dir())?.write(args.out_dir())?;
+    HtmlPage::for_batch(&summary.report, args.out_dir())?
+        .with_roundness_limits(Some(limits))
+        .write(args.out_dir())?;
     #[cfg(feature = "record")]
     if let Some(recorder) = recorder {
         recorder.finish()?;

@@ -7,7 +7,9 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use anyhow::Result;
 use clap::Args;
-use twincell::batch::{BatchRow, HtmlPage, SuiteReport, cancel_on_signals, write_json_report};
+use twincell::batch::{
+    BatchRow, HtmlPage, RoundnessLimits, SuiteReport, cancel_on_signals, write_json_report,
+};
 use twincell::scenario::{Override, Scenario};
 
 use super::BadInput;
@@ -49,6 +51,7 @@ pub fn run(args: &SuiteArgs) -> Result<ExitCode> {
         let scenario = Scenario::load_with(file, &args.set).map_err(|e| BadInput(e.to_string()))?;
         scenarios.push(opts.adjust(scenario)?);
     }
+    let limits = RoundnessLimits::shared(&scenarios);
     let cancel = Arc::new(AtomicBool::new(false));
     cancel_on_signals(&cancel)?;
     let mut rows = Vec::with_capacity(files.len());
@@ -83,7 +86,9 @@ pub fn run(args: &SuiteArgs) -> Result<ExitCode> {
         .map(|r| (r.scenario.clone(), r.clone()))
         .collect();
     let title = format!("twincell suite {}", report.suite);
-    HtmlPage::for_rows(&title, &report.perception_note, rows, &opts.out)?.write(&opts.out)?;
+    HtmlPage::for_rows(&title, report.perception, rows, &opts.out)?
+        .with_roundness_limits(limits)
+        .write(&opts.out)?;
     if opts.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
     } else {

@@ -8,7 +8,8 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use anyhow::Result;
 use clap::Args;
 use twincell::batch::{
-    BatchRow, HtmlPage, SweepPoint, SweepReport, cancel_on_signals, write_json_report,
+    BatchRow, HtmlPage, RoundnessLimits, SweepPoint, SweepReport, cancel_on_signals,
+    write_json_report,
 };
 use twincell::scenario::{Scenario, SweepAxis, sweep_grid};
 
@@ -41,6 +42,7 @@ pub fn run(args: &SweepArgs) -> Result<ExitCode> {
             Scenario::load_with(&args.scenario, point).map_err(|e| BadInput(e.to_string()))?;
         scenarios.push(opts.adjust(scenario)?);
     }
+    let limits = RoundnessLimits::shared(&scenarios);
     let cancel = Arc::new(AtomicBool::new(false));
     cancel_on_signals(&cancel)?;
     let mut points = Vec::with_capacity(grid.len());
@@ -86,7 +88,9 @@ pub fn run(args: &SweepArgs) -> Result<ExitCode> {
         "twincell sweep of {} (seed {})",
         report.scenario, report.seed
     );
-    HtmlPage::for_rows(&title, &report.perception_note, rows, &opts.out)?.write(&opts.out)?;
+    HtmlPage::for_rows(&title, report.perception, rows, &opts.out)?
+        .with_roundness_limits(limits)
+        .write(&opts.out)?;
     if opts.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
     } else {

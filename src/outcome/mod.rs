@@ -6,8 +6,8 @@ mod trial_record;
 
 pub use failure::{Failure, fail};
 pub use trial_record::{
-    DecisionRecord, FailureReason, Outcome, PartRecord, Perception, StreamPartRecord, StreamRecord,
-    TrialRecord, TrialTiming,
+    DecisionRecord, FailureReason, Misidentification, Outcome, PartRecord, Perception,
+    StreamPartRecord, StreamRecord, TrialRecord, TrialTiming,
 };
 
 /// Runs one trial of a scenario. Implementations must be deterministic in `(index, seed)`.

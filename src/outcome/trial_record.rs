@@ -214,6 +214,19 @@ pub struct StreamRecord {
     /// Every part that reached the pick station, in order (a stream halts at its first fault,
     /// as a cell stops on a fault, so later parts are not listed).
     pub parts: Vec<StreamPartRecord>,
+    /// The item at the photo-eye that the camera took for something else (the stream halts
+    /// there); absent when there was none.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub misidentified: Option<Misidentification>,
+}
+
+/// An item at the photo-eye taken for something it is not.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Misidentification {
+    /// What stood there: a part type's name or `bottle`.
+    pub truth: String,
+    /// What the camera took it for: a part type's name or `bottle`.
+    pub identified: String,
 }
 
 impl TrialRecord {

@@ -141,6 +141,9 @@ pub struct PerceptionFrame {
     pub detections: Vec<DetectionView>,
     /// The bores measured.
     pub bores: Vec<BoreView>,
+    /// What the look took to stand at the pick station: a part type's name, `bottle`, or
+    /// `None` for nothing.
+    pub station: Option<String>,
 }
 
 /// One detected object.

@@ -3,13 +3,14 @@
 
 use nalgebra::{Isometry3, Point3, Vector3};
 
-use super::camera_percept::{CameraPerception, Sighting, TargetRule};
+use super::camera_percept::{CameraPerception, Sighting, StationItem, TargetRule};
 use super::observer::{BoreView, DetectionView, PerceptionFrame};
 use super::trial::Trial;
 use crate::outcome::{Failure, FailureReason, PartRecord, fail};
 use crate::planning::{Percept, bottle_obstacle, part_obstacle};
 use crate::render::Scene;
 use crate::rng::SimRng;
+use crate::scenario::PartType;
 
 /// Things on the belt within this distance of the part are obstacles to its pick, m.
 const NEIGHBOURHOOD_M: f64 = 0.45;
@@ -63,8 +64,9 @@ impl Trial<'_> {
         self.timing.detect_ms += sighting.detect_ms;
         self.timing.metrology_ms += sighting.metrology_ms;
         let truth = self.part_record();
+        let part_types = &self.scenario.part_types;
         self.observer()
-            .perception(|| perception_frame(&sighting, &truth));
+            .perception(|| perception_frame(&sighting, &truth, part_types));
         Ok(sighting)
     }
 
@@ -175,7 +177,11 @@ impl Trial<'_> {
 
 /// What the camera saw, as an observer is shown it: the image, the detector's boxes, and the
 /// target's bore with the truth beside the measurement.
-fn perception_frame(sighting: &Sighting, truth: &PartRecord) -> PerceptionFrame {
+fn perception_frame(
+    sighting: &Sighting,
+    truth: &PartRecord,
+    part_types: &[PartType],
+) -> PerceptionFrame {
     let detections = sighting
         .detections
         .iter()
@@ -199,9 +205,17 @@ fn perception_frame(sighting: &Sighting, truth: &PartRecord) -> PerceptionFrame 
             true_diameter_mm: Some(truth.true_bore_diameter_mm),
         })
         .collect();
+    let station = sighting.at_station.map(|item| match item {
+        StationItem::Bottle(_) => "bottle".to_owned(),
+        StationItem::Part => sighting.target.as_ref().map_or_else(
+            || "a part".to_owned(),
+            |t| part_types[t.type_index].name.clone(),
+        ),
+    });
     PerceptionFrame {
         image: sighting.image.clone(),
         detections,
         bores,
+        station,
     }
 }

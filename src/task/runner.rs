@@ -5,7 +5,7 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use super::camera_percept::{CameraPerception, CameraPerceptionError};
-use super::observer::TrialObserverFactory;
+use super::observer::{CellView, PerceptionFrame, TrialObserver, TrialObserverFactory};
 use super::trial::Trial;
 use crate::cell::{Cell, CellError};
 use crate::kinematics::AnalyticIk;
@@ -32,7 +32,7 @@ pub struct CellTrialRunner {
     urdf: Option<(PathBuf, String)>,
     ik: AnalyticIk,
     camera: Option<Arc<CameraPerception>>,
-    observers: Option<Arc<dyn TrialObserverFactory>>,
+    observers: Vec<Arc<dyn TrialObserverFactory>>,
 }
 
 impl CellTrialRunner {
@@ -86,13 +86,14 @@ impl CellTrialRunner {
             urdf,
             ik,
             camera,
-            observers: None,
+            observers: Vec::new(),
         })
     }
 
-    /// Has every trial watched by an observer from `factory` (records stay the same).
+    /// Has every trial watched by an observer from `factory` as well as by those added before
+    /// (records stay the same).
     pub fn observe_with(&mut self, factory: Arc<dyn TrialObserverFactory>) {
-        self.observers = Some(factory);
+        self.observers.push(factory);
     }
 
     /// The scenario run.
@@ -113,7 +114,13 @@ impl TrialRunner for CellTrialRunner {
     fn run_trial(&self, index: u32, seed: u64) -> TrialRecord {
         let started = Instant::now();
         let mut rng = SimRng::new(seed);
-        let mut observer = self.observers.as_ref().map(|f| f.observer(index));
+        let mut observer: Option<Box<dyn TrialObserver>> = match self.observers.as_slice() {
+            [] => None,
+            [one] => Some(one.observer(index)),
+            many => Some(Box::new(Observers(
+                many.iter().map(|f| f.observer(index)).collect(),
+            ))),
+        };
         let mut record = match Cell::build(&self.scenario, self.urdf.as_ref(), &mut rng) {
             Ok(cell) => {
                 let mut trial = Trial::new(
@@ -143,5 +150,34 @@ impl TrialRunner for CellTrialRunner {
             observer.finish_trial(&record);
         }
         record
+    }
+}
+
+/// Several observers of one trial, each called in turn.
+struct Observers(Vec<Box<dyn TrialObserver>>);
+
+impl TrialObserver for Observers {
+    fn begin_trial(&mut self, trial_index: u32, scenario: &Scenario, view: &CellView<'_>) {
+        for o in &mut self.0 {
+            o.begin_trial(trial_index, scenario, view);
+        }
+    }
+
+    fn sample(&mut self, sim_time_s: f64, view: &CellView<'_>) {
+        for o in &mut self.0 {
+            o.sample(sim_time_s, view);
+        }
+    }
+
+    fn perception(&mut self, sim_time_s: f64, frame: &PerceptionFrame) {
+        for o in &mut self.0 {
+            o.perception(sim_time_s, frame);
+        }
+    }
+
+    fn finish_trial(&mut self, outcome: &TrialRecord) {
+        for o in &mut self.0 {
+            o.finish_trial(outcome);
+        }
     }
 }

@@ -9,7 +9,7 @@ use super::camera_percept::{Sighting, StationItem, TargetRule};
 use super::pick_cycle::Cycle;
 use super::trial::Trial;
 use crate::outcome::{
-    Failure, FailureReason, Outcome, StreamPartRecord, StreamRecord, TrialRecord,
+    Failure, FailureReason, Misidentification, Outcome, StreamPartRecord, StreamRecord, TrialRecord,
 };
 
 /// Spacing of the points along the photo-eye's beam that the camera checks, m.
@@ -108,15 +108,30 @@ impl Trial<'_> {
         let sighting = self.look(camera, TargetRule::AtBeam(self.beam_points()))?;
         match (sighting.at_station, true_part) {
             (Some(StationItem::Part), Some(_)) => Ok(AtEye::Part(Some(Box::new(sighting)))),
-            (Some(StationItem::Part), None) => Err(Failure::new(
-                FailureReason::Misidentified,
-                "the camera took the bottle at the photo-eye for a part",
-            )),
+            (Some(StationItem::Part), None) => {
+                let identified = sighting.target.as_ref().map_or("a part", |t| {
+                    self.scenario.part_types[t.type_index].name.as_str()
+                });
+                self.misidentified = Some(Misidentification {
+                    truth: "bottle".to_owned(),
+                    identified: identified.to_owned(),
+                });
+                Err(Failure::new(
+                    FailureReason::Misidentified,
+                    "the camera took the bottle at the photo-eye for a part",
+                ))
+            }
             (Some(StationItem::Bottle(_)), None) => Ok(AtEye::Bottle),
-            (Some(StationItem::Bottle(_)), Some(_)) => Err(Failure::new(
-                FailureReason::Misidentified,
-                "the camera took the part at the photo-eye for a bottle",
-            )),
+            (Some(StationItem::Bottle(_)), Some(i)) => {
+                self.misidentified = Some(Misidentification {
+                    truth: self.cell.items.parts()[i].instance.type_name.clone(),
+                    identified: "bottle".to_owned(),
+                });
+                Err(Failure::new(
+                    FailureReason::Misidentified,
+                    "the camera took the part at the photo-eye for a bottle",
+                ))
+            }
             (None, _) => Err(Failure::new(
                 FailureReason::NotDetected,
                 format!(
@@ -220,6 +235,7 @@ impl Trial<'_> {
                 bottles_passed,
                 belt_stops,
                 parts,
+                misidentified: self.misidentified.take(),
             }),
         }
     }

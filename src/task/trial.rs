@@ -15,7 +15,7 @@ use super::phase::{Phase, PhaseDeadline};
 use crate::cell::Cell;
 use crate::control::{BeltDrive, GripperDrive, HoldMonitor, TrajectoryFollower};
 use crate::kinematics::{AnalyticIk, JointVector};
-use crate::outcome::{Failure, FailureReason, TrialTiming, fail};
+use crate::outcome::{Failure, FailureReason, Misidentification, TrialTiming, fail};
 use crate::planning::{JointTrajectory, PickPlanner, capture_robot_shapes, scenery_obstacles};
 use crate::rng::SimRng;
 use crate::scenario::Scenario;
@@ -56,6 +56,8 @@ pub(crate) struct Trial<'a> {
     pub(crate) q: JointVector,
     /// When the belt last stopped for a pick.
     pub(crate) pick_time_s: Option<f64>,
+    /// The item at the photo-eye the camera took for something else, when it did.
+    pub(crate) misidentified: Option<Misidentification>,
     observer: ObserverSlot<'a>,
 }
 
@@ -106,6 +108,7 @@ impl<'a> Trial<'a> {
             grip_recipe_n: scenario.gripper.grip_force_n,
             q: home,
             pick_time_s: None,
+            misidentified: None,
             observer: ObserverSlot::default(),
             cell,
         }

@@ -1,0 +1,383 @@
+//! What `report.html` reads from the batches' records beyond their headline rows: the sorter's
+//! decisions against the truth (the confusion matrices and the roundness scatter) and a card for
+//! every failed or misjudged trial, with its camera frame from `images/`.
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::fmt::Write as _;
+use std::fs;
+use std::io;
+use std::path::Path;
+
+use base64::Engine as _;
+
+use super::html::HtmlError;
+use super::trial_images::{decision_misjudged, trial_image_path, wants_image};
+use super::{
+    AcceptConfusion, DecisionRecord, FailureReason, Outcome, PartRecord, Perception, TRIALS_FILE,
+    TrialRecord, xml_escape,
+};
+
+/// The label of an item nothing was detected for, in the type matrix.
+pub const NOT_DETECTED: &str = "not detected";
+/// The label of the bottle, a true item and a detector class.
+pub const BOTTLE: &str = "bottle";
+
+/// The trial records in `dir/trials.jsonl`.
+pub fn read_records(dir: &Path) -> Result<Vec<TrialRecord>, HtmlError> {
+    let path = dir.join(TRIALS_FILE);
+    let text = fs::read_to_string(&path).map_err(|e| HtmlError::Records {
+        path: path.clone(),
+        reason: e.to_string(),
+    })?;
+    text.lines()
+        .filter(|l| !l.trim().is_empty())
+        .map(|line| {
+            serde_json::from_str(line).map_err(|e| HtmlError::Records {
+                path: path.clone(),
+                reason: e.to_string(),
+            })
+        })
+        .collect()
+}
+
+/// The sorter's decisions against the truth, over every batch of a page.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct PageSorting {
+    /// True verdict vs decided verdict, every decided part.
+    pub accept_reject: AcceptConfusion,
+    /// Of those, the parts inside the uncertainty band (either verdict counts as right).
+    pub in_band: u32,
+    /// True item (part type or `bottle`) -> what perception took it for (a part type,
+    /// `bottle`, or `not detected`) -> count.
+    pub types: BTreeMap<String, BTreeMap<String, u32>>,
+    /// `[true, measured]` roundness of every measured part, mm, with whether its verdict was
+    /// the true one.
+    pub roundness_mm: Vec<([f64; 2], bool)>,
+}
+
+impl PageSorting {
+    fn add_decided(&mut self, part: &PartRecord, decision: &DecisionRecord) {
+        let truth = if part.truly_acceptable {
+            &mut self.accept_reject.truly_accept
+        } else {
+            &mut self.accept_reject.truly_reject
+        };
+        if decision.accept {
+            truth.accept += 1;
+        } else {
+            truth.reject += 1;
+        }
+        self.in_band += u32::from(!part.clear_cut);
+        self.add_type(&part.part_type, &decision.detected_type, 1);
+        if let Some(measured) = decision.measured_roundness_mm {
+            let right = decision.accept == part.truly_acceptable;
+            self.roundness_mm
+                .push(([part.true_roundness_mm, measured], right));
+        }
+    }
+
+    fn add_type(&mut self, truth: &str, identified: &str, n: u32) {
+        if n > 0 {
+            *self
+                .types
+                .entry(truth.to_owned())
+                .or_default()
+                .entry(identified.to_owned())
+                .or_default() += n;
+        }
+    }
+
+    /// Adds what `record` says: every decided part, a single part not detected, a stream's
+    /// bottles let through and its item taken for something else.
+    pub fn add(&mut self, record: &TrialRecord) {
+        if let (Some(part), Some(decision)) = (&record.part, &record.decision) {
+            self.add_decided(part, decision);
+        }
+        if let (Some(part), None, Some(FailureReason::NotDetected)) =
+            (&record.part, &record.decision, record.failure)
+        {
+            self.add_type(&part.part_type, NOT_DETECTED, 1);
+        }
+        if let Some(stream) = &record.stream {
+            for p in &stream.parts {
+                if let Some(decision) = &p.decision {
+                    self.add_decided(&p.part, decision);
+                }
+            }
+            self.add_type(BOTTLE, BOTTLE, stream.bottles_passed);
+            if let Some(m) = &stream.misidentified {
+                self.add_type(&m.truth, &m.identified, 1);
+            }
+        }
+    }
+
+    /// The accept/reject matrix as an HTML table.
+    pub fn accept_reject_table(&self) -> String {
+        let c = &self.accept_reject;
+        let cells = [
+            ("conforming", c.truly_accept.accept, c.truly_accept.reject),
+            (
+                "nonconforming",
+                c.truly_reject.accept,
+                c.truly_reject.reject,
+            ),
+        ];
+        let most = cells
+            .iter()
+            .map(|(_, a, r)| (*a).max(*r))
+            .max()
+            .unwrap_or(0);
+        let mut out = String::from(
+            "<table class=\"cm\"><tr><th>truth \\ decision</th><th>accepted</th>\
+             <th>rejected</th></tr>\n",
+        );
+        for (i, (label, accepted, rejected)) in cells.iter().enumerate() {
+            let _ = writeln!(
+                out,
+                "<tr><th>{label}</th>{}{}</tr>",
+                cell(*accepted, most, i == 0),
+                cell(*rejected, most, i == 1)
+            );
+        }
+        let _ = writeln!(
+            out,
+            "</table>\n<p class=\"small\">{} decided parts; {} of them inside the uncertainty \
+             band about the tolerance, where either verdict counts as right.</p>",
+            c.truly_accept.accept
+                + c.truly_accept.reject
+                + c.truly_reject.accept
+                + c.truly_reject.reject,
+            self.in_band
+        );
+        out
+    }
+
+    /// The type matrix (true item vs what perception took it for) as an HTML table.
+    pub fn type_table(&self) -> String {
+        if self.types.is_empty() {
+            return "<p>No part or bottle was identified.</p>\n".to_owned();
+        }
+        let truths: Vec<&String> = self.types.keys().collect();
+        let mut columns: BTreeSet<&str> = self
+            .types
+            .values()
+            .flat_map(|row| row.keys().map(String::as_str))
+            .collect();
+        columns.extend(truths.iter().map(|t| t.as_str()));
+        // Parts first, then the bottle and nothing, in that order.
+        let mut columns: Vec<&str> = columns
+            .into_iter()
+            .filter(|c| *c != BOTTLE && *c != NOT_DETECTED)
+            .collect();
+        columns.extend([BOTTLE, NOT_DETECTED]);
+        let most = self
+            .types
+            .values()
+            .flat_map(|row| row.values().copied())
+            .max()
+            .unwrap_or(0);
+        let mut out = String::from("<table class=\"cm\"><tr><th>truth \\ identified</th>");
+        for c in &columns {
+            let _ = write!(out, "<th>{}</th>", xml_escape(c));
+        }
+        out.push_str("</tr>\n");
+        // Parts first, the bottle last.
+        let (bottle, mut truths): (Vec<&String>, Vec<&String>) =
+            truths.into_iter().partition(|t| *t == BOTTLE);
+        truths.extend(bottle);
+        for truth in truths {
+            let _ = write!(out, "<tr><th>{}</th>", xml_escape(truth));
+            let row = &self.types[truth];
+            for c in &columns {
+                let n = row.get(*c).copied().unwrap_or(0);
+                out.push_str(&cell(n, most, *c == truth.as_str()));
+            }
+            out.push_str("</tr>\n");
+        }
+        out.push_str("</table>\n");
+        out
+    }
+}
+
+/// A count as a table cell shaded by its share of `most`: green on the diagonal (`right`),
+/// red off it; empty cells stay white.
+fn cell(n: u32, most: u32, right: bool) -> String {
+    if n == 0 {
+        return "<td class=\"n\">0</td>".to_owned();
+    }
+    let share = 0.15 + 0.6 * f64::from(n) / f64::from(most.max(1));
+    let rgb = if right { "40,160,60" } else { "210,40,40" };
+    format!("<td class=\"n\" style=\"background:rgba({rgb},{share:.2})\">{n}</td>")
+}
+
+/// The picture a card shows.
+#[derive(Debug, Clone, PartialEq)]
+pub enum CardImage {
+    /// The trial's annotated camera frame, JPEG bytes.
+    Jpeg(Vec<u8>),
+    /// Oracle perception: there is no camera image.
+    Oracle,
+    /// Camera perception, but no frame was saved (the trial failed before the camera looked).
+    Missing,
+}
+
+/// One failed or misjudged trial, as the page shows it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrialCard {
+    /// The batch's label.
+    pub batch: String,
+    /// Trial index.
+    pub trial: u32,
+    /// The trial's seed.
+    pub seed: u64,
+    /// The failure reason, or `misjudged` for a success with a decision against the truth.
+    pub reason: String,
+    /// The record's detail.
+    pub detail: String,
+    /// Truth and decision of the part concerned, in words.
+    pub judgement: String,
+    /// The camera frame.
+    pub image: CardImage,
+}
+
+/// Truth and decision of `part` in words.
+fn judgement(part: &PartRecord, decision: Option<&DecisionRecord>, placed: Option<&str>) -> String {
+    let verdict = |accept: bool| if accept { "accept" } else { "reject" };
+    let mut text = format!(
+        "truth: {} roundness {:.3} mm ({}), bore {:.2} mm, belongs in {}",
+        part.part_type,
+        part.true_roundness_mm,
+        verdict(part.truly_acceptable),
+        part.true_bore_diameter_mm,
+        part.correct_bin
+    );
+    match decision {
+        Some(d) => {
+            let measured = d
+                .measured_roundness_mm
+                .map_or("not measured".to_owned(), |r| {
+                    format!("roundness {r:.3} mm")
+                });
+            let bore = d
+                .measured_bore_diameter_mm
+                .map_or(String::new(), |b| format!(", bore {b:.2} mm"));
+            let misjudged = if decision_misjudged(part, d) {
+                " (misjudged)"
+            } else {
+                ""
+            };
+            let _ = write!(
+                text,
+                "; decided: {} {measured}{bore} -> {}{misjudged}",
+                d.detected_type,
+                verdict(d.accept)
+            );
+        }
+        None => text.push_str("; no decision"),
+    }
+    let _ = write!(text, "; placed in {}", placed.unwrap_or("no bin"));
+    text
+}
+
+/// The card of `record` (from batch `batch` in `dir`, run with `perception`), when it wants
+/// one.
+pub fn trial_card(
+    batch: &str,
+    dir: &Path,
+    perception: Perception,
+    record: &TrialRecord,
+) -> Result<Option<TrialCard>, HtmlError> {
+    if !wants_image(record) {
+        return Ok(None);
+    }
+    let reason = match (record.outcome, record.failure) {
+        (Outcome::Failure, Some(f)) => f.as_str().to_owned(),
+        (Outcome::Failure, None) => "unspecified".to_owned(),
+        (Outcome::Success, _) => "misjudged".to_owned(),
+    };
+    let part = match &record.stream {
+        Some(stream) => stream
+            .parts
+            .iter()
+            .find(|p| {
+                p.outcome == Outcome::Failure
+                    || p.decision
+                        .as_ref()
+                        .is_some_and(|d| decision_misjudged(&p.part, d))
+            })
+            .map(|p| {
+                format!(
+                    "part {}: {}",
+                    p.index,
+                    judgement(&p.part, p.decision.as_ref(), p.placed_bin.as_deref())
+                )
+            }),
+        None => record
+            .part
+            .as_ref()
+            .map(|p| judgement(p, record.decision.as_ref(), record.placed_bin.as_deref())),
+    };
+    let image = match perception {
+        Perception::Oracle => CardImage::Oracle,
+        Perception::Camera => {
+            let path = trial_image_path(dir, record.trial);
+            match fs::read(&path) {
+                Ok(bytes) => CardImage::Jpeg(bytes),
+                Err(err) if err.kind() == io::ErrorKind::NotFound => CardImage::Missing,
+                Err(err) => {
+                    return Err(HtmlError::Records {
+                        path,
+                        reason: err.to_string(),
+                    });
+                }
+            }
+        }
+    };
+    Ok(Some(TrialCard {
+        batch: batch.to_owned(),
+        trial: record.trial,
+        seed: record.seed,
+        reason,
+        detail: record.detail.clone().unwrap_or_default(),
+        judgement: part.unwrap_or_else(|| "no part reached the pick station".to_owned()),
+        image,
+    }))
+}
+
+/// The cards as an HTML section body.
+pub fn cards_html(cards: &[TrialCard]) -> String {
+    if cards.is_empty() {
+        return "<p>No trial failed or was misjudged.</p>\n".to_owned();
+    }
+    let mut out = String::from("<div class=\"cards\">\n");
+    for card in cards {
+        let picture = match &card.image {
+            CardImage::Jpeg(bytes) => format!(
+                "<img width=\"320\" alt=\"camera frame of trial {}\" \
+                 src=\"data:image/jpeg;base64,{}\">",
+                card.trial,
+                base64::engine::general_purpose::STANDARD.encode(bytes)
+            ),
+            CardImage::Oracle => "<div class=\"noimg\">oracle perception: no camera image (the \
+                                  truth was read from the simulated world)</div>"
+                .to_owned(),
+            CardImage::Missing => "<div class=\"noimg\">no camera frame: the trial ended before \
+                                   the camera looked</div>"
+                .to_owned(),
+        };
+        let _ = writeln!(
+            out,
+            "<figure class=\"card\">{picture}<figcaption><b>{}</b> trial {} (seed {}): \
+             <span class=\"fail\">{}</span><br>{}<br><span class=\"small\">{}</span>\
+             </figcaption></figure>",
+            xml_escape(&card.batch),
+            card.trial,
+            card.seed,
+            xml_escape(&card.reason),
+            xml_escape(&card.detail),
+            xml_escape(&card.judgement)
+        );
+    }
+    out.push_str("</div>\n");
+    out
+}
