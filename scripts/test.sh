@@ -3,4 +3,9 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 source scripts/setup.sh
+# The report page's browser test (tests/report_page.rs) loads report.html in headless Chromium
+# through scripts/browser_check.py; without it that test fails, so install it here or stop.
+if ! command -v "${TWINCELL_CHROMIUM:-chromium}" >/dev/null 2>&1; then
+    apt_install "the report page's browser test needs headless Chromium" chromium
+fi
 cargo test --release --locked "$@"
