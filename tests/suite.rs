@@ -247,3 +247,55 @@ fn a_suite_runs_every_scenario_file_with_its_gate_per_scenario() {
     );
     assert!(!out.exists());
 }
+
+#[test]
+fn a_scenario_files_gate_applies_unless_min_success_replaces_it() {
+    // fast_belt fails every trial (the belt cannot stop before the photo-eye), fast in oracle mode.
+    let fast = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/scenarios/suite/fast_belt.toml"
+    );
+    let dir = out_dir("file_gate");
+    let out = dir.to_str().expect("UTF-8");
+    let base = [
+        "run",
+        fast,
+        "--perception",
+        "oracle",
+        "--trials",
+        "2",
+        "--out",
+        out,
+    ];
+    let gated = [&base[..], &["--set", "min_success=0.5"]].concat();
+    assert_eq!(run_ok(&gated), 1, "the file's gate of 0.5 fails on 0/2");
+    assert_eq!(report(&dir)["gate"]["min_success"], 0.5);
+    let replaced = [&gated[..], &["--min-success", "0"]].concat();
+    assert_eq!(
+        run_ok(&replaced),
+        0,
+        "--min-success 0 replaces the file's gate"
+    );
+    assert_eq!(report(&dir)["gate"]["min_success"], 0.0);
+    assert_eq!(run_ok(&base), 0, "fast_belt's file sets no gate");
+    assert!(report(&dir)["gate"].is_null());
+
+    // suite and sweep take each scenario's own gate too.
+    let sweep = out_dir("file_gate_sweep");
+    let code = run_ok(&[
+        "sweep",
+        fast,
+        "--perception",
+        "oracle",
+        "--trials",
+        "1",
+        "--set",
+        "min_success=0.5,0",
+        "--out",
+        sweep.to_str().expect("UTF-8"),
+    ]);
+    assert_eq!(code, 1);
+    let points = report(&sweep)["points"].clone();
+    assert_eq!(points[0]["gate"]["passed"], false, "{points}");
+    assert_eq!(points[1]["gate"]["passed"], true, "{points}");
+}

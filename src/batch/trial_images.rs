@@ -179,7 +179,7 @@ pub fn annotated_thumbnail(frame: &PerceptionFrame) -> RgbImage {
             bore.centre_px[0].round() as i32,
             bore.centre_px[1].round() as i32,
         );
-        for dr in [0, 1] {
+        for dr in [-1, 0, 1] {
             draw_hollow_circle_mut(&mut image, centre, bore.radius_px.round() as i32 + dr, BORE);
         }
         draw_cross_mut(&mut image, BORE, centre.0, centre.1);

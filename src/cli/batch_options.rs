@@ -36,7 +36,8 @@ pub struct BatchOptions {
     /// The detector model for camera perception (default: the shipped one).
     #[arg(long, value_name = "FILE.onnx")]
     pub model: Option<PathBuf>,
-    /// Least success rate each batch must reach, in [0, 1] (exit code 1 when one does not).
+    /// Least success rate each batch must reach, in [0, 1] (exit code 1 when one does not);
+    /// replaces each scenario file's own `min_success`.
     #[arg(long, value_name = "RATE", value_parser = super::parse_rate)]
     pub min_success: Option<f64>,
     /// Print report.json to stdout instead of the summary table.
@@ -74,7 +75,7 @@ impl BatchOptions {
             trials: scenario.trials,
             jobs: self.jobs,
             shard: self.shard,
-            min_success: self.min_success,
+            min_success: self.min_success.or(scenario.min_success),
         };
         let mut runner = match &self.model {
             Some(model) => CellTrialRunner::with_model(scenario, path, self.perception, model),

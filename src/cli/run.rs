@@ -54,7 +54,8 @@ pub struct RunArgs {
     /// The detector model for camera perception (default: the shipped one).
     #[arg(long, value_name = "FILE.onnx")]
     model: Option<PathBuf>,
-    /// Least success rate that passes, in [0, 1] (exit code 1 below it).
+    /// Least success rate that passes, in [0, 1] (exit code 1 below it); replaces the
+    /// scenario file's `min_success`.
     #[arg(long, value_name = "RATE", value_parser = super::parse_rate)]
     min_success: Option<f64>,
     /// Print report.json to stdout instead of the summary table.
@@ -121,7 +122,7 @@ pub fn run_scenario(args: &RunArgs, progress: bool) -> Result<BatchSummary> {
         trials: scenario.trials,
         jobs: args.jobs,
         shard: args.shard,
-        min_success: args.min_success,
+        min_success: args.min_success.or(scenario.min_success),
     };
     let mut runner = match &args.model {
         Some(model) => {

@@ -24,6 +24,10 @@ pub struct Scenario {
     pub seed: u64,
     /// Number of trials.
     pub trials: u32,
+    /// The least success rate this scenario must reach, in [0, 1]: the batch's gate when
+    /// `--min-success` does not set one (exit code 1 below it). `None`: no gate.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub min_success: Option<f64>,
     /// Parts per trial: 1 for the paper's experiment; more makes each trial one run of a
     /// continuous stream of that many parts (see [`StreamSection`]).
     #[serde(default = "one")]

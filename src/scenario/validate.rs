@@ -149,6 +149,9 @@ impl Scenario {
         if self.trials == 0 {
             return Err(c.fail("trials", "must be at least 1"));
         }
+        if let Some(rate) = self.min_success {
+            c.in_range("min_success", rate, 0.0, 1.0)?;
+        }
         if !(1..=1000).contains(&self.parts_per_trial) {
             return Err(c.fail("parts_per_trial", "must lie in [1, 1000]"));
         }
