@@ -74,6 +74,7 @@ const RANGES: &[(&str, f64, f64, bool)] = &[
     ("task.slip_tolerance_m", 0.0, 1.0, true),
     ("task.bottle_tolerance_m", 0.0, 1.0, true),
     ("camera.position_m[2]", -10.0, 10.0, false),
+    ("min_success", 0.0, 1.0, false),
 ];
 
 #[test]
@@ -140,6 +141,8 @@ fn values_inside_the_ranges_are_accepted() {
         ("bottle.mass_kg", 5.0),
         ("task.trial_timeout_s", 86_400.0),
         ("roundness_tolerance_mm", 5.0),
+        ("min_success", 1.0),
+        ("min_success", 0.0),
     ];
     for &(key, value) in fine {
         let mut table = base.clone();
