@@ -112,8 +112,20 @@ fn adaptive_mean_kernel(
             *s += u32::from(p);
         }
     }
-    // Column sums reach 255 (2r+1), prefixes 255 (2r+1) w: u32 for any realistic frame.
-    let mut prefix = vec![0u32; w + 1];
+    // Column sums reach 255 (2r+1), prefixes 255 (2r+1) w: u32 for any realistic frame. The
+    // prefixes are padded with r zeros in front and r copies of the total behind, so that the
+    // block of every column, clipped at the border or not, is `padded[x + 2r + 1] - padded[x]`.
+    let mut padded = vec![0u32; w + 2 * r + 1];
+    // Columns in each block, clipped at the border.
+    let columns_in: Vec<f32> = (0..w)
+        .map(|x| ((x + r).min(w - 1) - x.saturating_sub(r) + 1) as f32)
+        .collect();
+    let offset = i64::from(delta) + 1;
+    // The decision runs in f32 lanes (SSE2 has no 32-bit integer multiply) so that the compiler
+    // vectorises it, exact while every product and sum stays below 2^24; the largest block
+    // (all (2r+1)^2 pixels) bounds them all.
+    let largest_count = ((2 * r + 1).min(h) * (2 * r + 1).min(w)) as i64;
+    let exact_in_f32 = largest_count * offset.abs().max((255 + offset).abs()).max(255) < 1 << 24;
     for y in 0..h {
         if y + r < h {
             let row = &src[(y + r) * w..(y + r + 1) * w];
@@ -131,48 +143,43 @@ fn adaptive_mean_kernel(
         let y_high = (y + r).min(h - 1);
         let rows_in = (y_high - y_low + 1) as i64;
         let mut running = 0u32;
-        for (p, &s) in prefix[1..].iter_mut().zip(&column_sums) {
+        for (p, &s) in padded[r + 1..r + 1 + w].iter_mut().zip(&column_sums) {
             running = running.wrapping_add(s);
             *p = running;
         }
+        padded[r + 1 + w..].fill(running);
         let src_row = &src[y * w..(y + 1) * w];
         let out_row = &mut dst[y * w..(y + 1) * w];
-        let decide = |x: usize, x_low: usize, x_high: usize| -> u8 {
-            let count = rows_in * (x_high - x_low + 1) as i64;
-            let sum = i64::from(prefix[x_high + 1].wrapping_sub(prefix[x_low]));
-            // p >= floor(sum / count) - delta  <=>  (p + delta + 1) * count > sum.
-            let k = i64::from(src_row[x]) + i64::from(delta) + 1;
-            if k * count > sum || src_row[x] > floor {
-                255
-            } else {
-                0
-            }
-        };
-        // Interior columns share one block size: a branch-free loop the compiler vectorises, in
-        // f32 lanes (SSE2 has no 32-bit integer multiply), exact while every product and sum
-        // stays below 2^24.
-        let count = rows_in * (2 * r + 1) as i64;
-        let offset = i64::from(delta) + 1;
-        let largest = count * offset.abs().max((255 + offset).abs()).max(255);
-        let (inner_low, inner_high) = if largest < 1 << 24 {
-            (r.min(w), w.saturating_sub(r))
-        } else {
-            (w, w)
-        };
-        for x in (0..inner_low).chain(inner_high.max(inner_low)..w) {
-            out_row[x] = decide(x, x.saturating_sub(r), (x + r).min(w - 1));
-        }
-        if inner_low < inner_high {
-            let (count, offset) = (count as f32, offset as f32);
-            let (high, low) = (&prefix[inner_low + r + 1..], &prefix[..inner_high - r]);
-            for (((o, &p), &hi), &lo) in out_row[inner_low..inner_high]
+        let (high, low) = (&padded[2 * r + 1..], &padded[..w]);
+        if exact_in_f32 {
+            let (rows_in, offset) = (rows_in as f32, offset as f32);
+            for ((((o, &p), &hi), &lo), &columns) in out_row
                 .iter_mut()
-                .zip(&src_row[inner_low..inner_high])
+                .zip(src_row)
                 .zip(high)
                 .zip(low)
+                .zip(&columns_in)
             {
                 let sum = hi.wrapping_sub(lo) as i32 as f32;
                 let k = f32::from(p) + offset;
+                *o = if k * (rows_in * columns) > sum || p > floor {
+                    255
+                } else {
+                    0
+                };
+            }
+        } else {
+            // p >= floor(sum / count) - delta  <=>  (p + delta + 1) * count > sum.
+            for ((((o, &p), &hi), &lo), &columns) in out_row
+                .iter_mut()
+                .zip(src_row)
+                .zip(high)
+                .zip(low)
+                .zip(&columns_in)
+            {
+                let count = rows_in * columns as i64;
+                let sum = i64::from(hi.wrapping_sub(lo));
+                let k = i64::from(p) + offset;
                 *o = if k * count > sum || p > floor { 255 } else { 0 };
             }
         }
