@@ -267,18 +267,23 @@ impl Flank {
         let n = values.len() as f64;
         let mean_offset = (n - 1.0) / 2.0;
         let mean_level = values.iter().sum::<f64>() / n;
-        let (mut sxy, mut sxx) = (0.0, 0.0);
-        for (i, &v) in values.iter().enumerate() {
-            let x = i as f64 - mean_offset;
+        // The abscissae `i - mean_offset` are multiples of a half and their squares of a
+        // quarter, so stepping them by one and summing their squares in closed form, n (n^2 - 1)
+        // / 12, is exact: the same bits as converting each index and summing the squares.
+        let sxx = n * (n * n - 1.0) / 12.0;
+        let mut sxy = 0.0;
+        let mut x = -mean_offset;
+        for &v in values {
             sxy += x * (v - mean_level);
-            sxx += x * x;
+            x += 1.0;
         }
         let slope = if sxx > 0.0 { sxy / sxx } else { 0.0 };
-        let sum_sq: f64 = values
-            .iter()
-            .enumerate()
-            .map(|(i, &v)| (v - mean_level - slope * (i as f64 - mean_offset)).powi(2))
-            .sum();
+        let mut sum_sq = 0.0;
+        let mut x = -mean_offset;
+        for &v in values {
+            sum_sq += (v - mean_level - slope * x).powi(2);
+            x += 1.0;
+        }
         Self {
             mean_index: a as f64 + mean_offset,
             mean_level,
@@ -364,6 +369,38 @@ mod tests {
             "mean radial error {}",
             sum / 360.0
         );
+    }
+
+    #[test]
+    fn flank_fits_have_the_bits_of_the_textbook_sums() {
+        let mut rng = crate::rng::SimRng::new(3);
+        for n in 1..24usize {
+            let profile: Vec<f64> = (0..n).map(|_| rng.range(0.0, 255.0)).collect();
+            let fit = Flank::fit(&profile, 0, n as isize - 1);
+            // Each abscissa converted from its index, every sum in order.
+            let count = n as f64;
+            let mean_offset = (count - 1.0) / 2.0;
+            let mean_level = profile.iter().sum::<f64>() / count;
+            let (mut sxy, mut sxx) = (0.0, 0.0);
+            for (i, &v) in profile.iter().enumerate() {
+                let x = i as f64 - mean_offset;
+                sxy += x * (v - mean_level);
+                sxx += x * x;
+            }
+            let slope = if sxx > 0.0 { sxy / sxx } else { 0.0 };
+            let sum_sq: f64 = profile
+                .iter()
+                .enumerate()
+                .map(|(i, &v)| (v - mean_level - slope * (i as f64 - mean_offset)).powi(2))
+                .sum();
+            assert_eq!(fit.slope.to_bits(), slope.to_bits(), "n {n}");
+            assert_eq!(
+                fit.rms.to_bits(),
+                (sum_sq / count).sqrt().to_bits(),
+                "n {n}"
+            );
+            assert_eq!(fit.mean_level.to_bits(), mean_level.to_bits(), "n {n}");
+        }
     }
 
     #[test]
