@@ -79,23 +79,25 @@ pub fn adaptive_mean_threshold_floored(
         // SAFETY: the function only requires AVX2, which the CPU was just found to have.
         return unsafe { adaptive_mean_avx2(image, block_radius_px, delta, floor) };
     }
-    adaptive_mean_kernel(image, block_radius_px, delta, floor)
+    adaptive_mean_kernel(image, block_radius_px, delta, floor, false)
 }
 
 /// [`adaptive_mean_kernel`] compiled for AVX2.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 fn adaptive_mean_avx2(image: &GrayImage, block_radius_px: u32, delta: i32, floor: u8) -> GrayImage {
-    adaptive_mean_kernel(image, block_radius_px, delta, floor)
+    adaptive_mean_kernel(image, block_radius_px, delta, floor, true)
 }
 
-/// The body of [`adaptive_mean_threshold_floored`], inlined into each instruction-set variant.
+/// The body of [`adaptive_mean_threshold_floored`], inlined into each instruction-set variant;
+/// `avx2` only from the AVX2 build (it then runs the row prefixes with AVX2 too).
 #[inline(always)]
 fn adaptive_mean_kernel(
     image: &GrayImage,
     block_radius_px: u32,
     delta: i32,
     floor: u8,
+    avx2: bool,
 ) -> GrayImage {
     let (w, h) = (image.width() as usize, image.height() as usize);
     let mut out = GrayImage::new(image.width(), image.height());
@@ -142,11 +144,7 @@ fn adaptive_mean_kernel(
         let y_low = y.saturating_sub(r);
         let y_high = (y + r).min(h - 1);
         let rows_in = (y_high - y_low + 1) as i64;
-        let mut running = 0u32;
-        for (p, &s) in padded[r + 1..r + 1 + w].iter_mut().zip(&column_sums) {
-            running = running.wrapping_add(s);
-            *p = running;
-        }
+        let running = row_running_sums(avx2, &column_sums, &mut padded[r + 1..r + 1 + w]);
         padded[r + 1 + w..].fill(running);
         let src_row = &src[y * w..(y + 1) * w];
         let out_row = &mut dst[y * w..(y + 1) * w];
@@ -185,6 +183,68 @@ fn adaptive_mean_kernel(
         }
     }
     out
+}
+
+/// [`running_sums`], with AVX2 when `avx2` (set only by the AVX2 build).
+#[inline(always)]
+fn row_running_sums(avx2: bool, values: &[u32], out: &mut [u32]) -> u32 {
+    #[cfg(target_arch = "x86_64")]
+    if avx2 {
+        // SAFETY: `avx2` is only set by the AVX2 build, on a CPU found to have it.
+        return unsafe { running_sums_avx2(values, out) };
+    }
+    let _ = avx2;
+    running_sums(values, out)
+}
+
+/// Running (inclusive, wrapping) sums of `values` into `out`, of the same length; returns the
+/// total.
+fn running_sums(values: &[u32], out: &mut [u32]) -> u32 {
+    let mut running = 0u32;
+    for (o, &v) in out.iter_mut().zip(values) {
+        running = running.wrapping_add(v);
+        *o = running;
+    }
+    running
+}
+
+/// [`running_sums`], eight at a time: a log-step scan inside each 128-bit lane, the low lane's
+/// total added to the high one, then the sum of all before. Integer sums: the same values.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn running_sums_avx2(values: &[u32], out: &mut [u32]) -> u32 {
+    use std::arch::x86_64::{
+        __m256i, _mm256_add_epi32, _mm256_loadu_si256, _mm256_permute2x128_si256,
+        _mm256_permutevar8x32_epi32, _mm256_set1_epi32, _mm256_setzero_si256, _mm256_shuffle_epi32,
+        _mm256_slli_si256, _mm256_storeu_si256,
+    };
+    let n = values.len().min(out.len());
+    let (values, out) = (&values[..n], &mut out[..n]);
+    let mut carry = _mm256_setzero_si256();
+    let mut chunks = out.chunks_exact_mut(8);
+    for (o, v) in (&mut chunks).zip(values.chunks_exact(8)) {
+        // SAFETY: `v` holds exactly eight `u32`, an unaligned load's 32 bytes.
+        let mut x = unsafe { _mm256_loadu_si256(v.as_ptr().cast::<__m256i>()) };
+        x = _mm256_add_epi32(x, _mm256_slli_si256::<4>(x));
+        x = _mm256_add_epi32(x, _mm256_slli_si256::<8>(x));
+        // Element 3 (the low lane's total) into the high lane, zeros into the low one.
+        let lane_totals = _mm256_shuffle_epi32::<0xFF>(x);
+        x = _mm256_add_epi32(
+            x,
+            _mm256_permute2x128_si256::<0x08>(lane_totals, lane_totals),
+        );
+        x = _mm256_add_epi32(x, carry);
+        // SAFETY: `o` holds exactly eight `u32`, an unaligned store's 32 bytes.
+        unsafe { _mm256_storeu_si256(o.as_mut_ptr().cast::<__m256i>(), x) };
+        carry = _mm256_permutevar8x32_epi32(x, _mm256_set1_epi32(7));
+    }
+    let done = n - chunks.into_remainder().len();
+    let mut running = if done > 0 { out[done - 1] } else { 0 };
+    for (o, &v) in out[done..].iter_mut().zip(&values[done..]) {
+        running = running.wrapping_add(v);
+        *o = running;
+    }
+    running
 }
 
 /// Bright where `p >= Gaussian blur of the image - delta`.
@@ -343,7 +403,7 @@ mod tests {
             let oracle = imageproc::contrast::adaptive_threshold(&image, radius, delta);
             prop_assert_eq!(ours.as_raw(), oracle.as_raw());
             // The baseline build too, whichever the dispatch picked.
-            let portable = adaptive_mean_kernel(&image, radius, delta, u8::MAX);
+            let portable = adaptive_mean_kernel(&image, radius, delta, u8::MAX, false);
             prop_assert_eq!(portable.as_raw(), oracle.as_raw());
         }
 
@@ -355,7 +415,7 @@ mod tests {
             brighten_above(&mut oracle, &image, floor);
             let ours = adaptive_mean_threshold_floored(&image, radius, delta, floor);
             prop_assert_eq!(ours.as_raw(), oracle.as_raw());
-            let portable = adaptive_mean_kernel(&image, radius, delta, floor);
+            let portable = adaptive_mean_kernel(&image, radius, delta, floor, false);
             prop_assert_eq!(portable.as_raw(), oracle.as_raw());
         }
 
@@ -371,8 +431,25 @@ mod tests {
             let ours = adaptive_mean_threshold(&image, 20, delta);
             let oracle = imageproc::contrast::adaptive_threshold(&image, 20, delta);
             prop_assert_eq!(ours.as_raw(), oracle.as_raw());
-            let portable = adaptive_mean_kernel(&image, 20, delta, u8::MAX);
+            let portable = adaptive_mean_kernel(&image, 20, delta, u8::MAX, false);
             prop_assert_eq!(portable.as_raw(), oracle.as_raw());
+        }
+
+        #[test]
+        fn both_builds_of_the_running_sums_agree(
+            values in proptest::collection::vec(any::<u32>(), 0..70)
+        ) {
+            let mut scalar = vec![0u32; values.len()];
+            let total = running_sums(&values, &mut scalar);
+            prop_assert_eq!(total, scalar.last().copied().unwrap_or(0));
+            #[cfg(target_arch = "x86_64")]
+            if std::arch::is_x86_feature_detected!("avx2") {
+                let mut wide = vec![0u32; values.len()];
+                // SAFETY: the CPU has AVX2 (checked above).
+                let wide_total = unsafe { running_sums_avx2(&values, &mut wide) };
+                prop_assert_eq!(&wide, &scalar);
+                prop_assert_eq!(wide_total, total);
+            }
         }
 
         #[test]
