@@ -233,10 +233,11 @@ fn running_sums_avx2(values: &[u32], out: &mut [u32]) -> u32 {
             x,
             _mm256_permute2x128_si256::<0x08>(lane_totals, lane_totals),
         );
-        x = _mm256_add_epi32(x, carry);
+        let sums = _mm256_add_epi32(x, carry);
         // SAFETY: `o` holds exactly eight `u32`, an unaligned store's 32 bytes.
-        unsafe { _mm256_storeu_si256(o.as_mut_ptr().cast::<__m256i>(), x) };
-        carry = _mm256_permutevar8x32_epi32(x, _mm256_set1_epi32(7));
+        unsafe { _mm256_storeu_si256(o.as_mut_ptr().cast::<__m256i>(), sums) };
+        // The chunk's own total is broadcast off the carry's chain: one add a chunk on it.
+        carry = _mm256_add_epi32(carry, _mm256_permutevar8x32_epi32(x, _mm256_set1_epi32(7)));
     }
     let done = n - chunks.into_remainder().len();
     let mut running = if done > 0 { out[done - 1] } else { 0 };
