@@ -175,11 +175,31 @@ fn filtered_roundness_kernel(
             c = c_next;
         }
     }
-    // ... and harmonic by harmonic (for the series at every point, see `series_values`).
-    let mut columns = Vec::with_capacity(2 * n * k_max);
-    for k in 0..k_max {
-        columns.extend(basis.iter().skip(k).step_by(k_max).map(|b| b.0));
-        columns.extend(basis.iter().skip(k).step_by(k_max).map(|b| b.1));
+    // ... and harmonic by harmonic (for the series at every point, see `series_values`), by the
+    // same rotation run over all points at once.
+    let mut columns = vec![0.0f64; 2 * n * k_max];
+    if k_max > 0 {
+        let (cos_1, sin_1) = columns[..2 * n].split_at_mut(n);
+        for ((c, s), p) in cos_1.iter_mut().zip(sin_1.iter_mut()).zip(&polar) {
+            [*c, *s] = p.2;
+        }
+    }
+    for k in 1..k_max {
+        let (done, todo) = columns.split_at_mut(2 * n * k);
+        let (cos_1, sin_1) = done[..2 * n].split_at(n);
+        let (cos_prev, sin_prev) = done[2 * n * (k - 1)..].split_at(n);
+        let (cos_next, sin_next) = todo[..2 * n].split_at_mut(n);
+        for (((((cn, sn), &c), &s), &c1), &s1) in cos_next
+            .iter_mut()
+            .zip(sin_next.iter_mut())
+            .zip(cos_prev)
+            .zip(sin_prev)
+            .zip(cos_1)
+            .zip(sin_1)
+        {
+            *cn = c * c1 - s * s1;
+            *sn = s * c1 + c * s1;
+        }
     }
     let mut mean_radius = polar.iter().map(|p| p.1).sum::<f64>() / n as f64;
     let mut harmonics = vec![(0.0f64, 0.0f64); k_max];
