@@ -190,7 +190,7 @@ pub fn refine_ray(
     }
     // Only the samples the search and then the windows about the chosen step read are taken:
     // first the searched stretch, then what the windows need beyond it.
-    let searched = (low - span) as usize..(high + span + 1) as usize;
+    let searched = in_chunks((low - span) as usize..(high + span + 1) as usize, count);
     samples.fill(searched.clone(), scratch);
     let mut best: Option<(isize, f64)> = None;
     for j in low..=high {
@@ -205,8 +205,8 @@ pub fn refine_ray(
         (j - wing).max(0) as usize,
         (j + wing).min(last) as usize + 1,
     );
-    samples.fill(first..searched.start.max(first), scratch);
-    samples.fill(searched.end.min(end)..end, scratch);
+    samples.fill(in_chunks(first..searched.start.max(first), count), scratch);
+    samples.fill(in_chunks(searched.end.min(end)..end, count), scratch);
     let profile = scratch.as_slice();
     let (j, _) = best?;
     // The rim side stops short of a thin wall's outer edge.
@@ -244,6 +244,19 @@ pub fn refine_ray(
         outer_level,
         flank_rms: inner.rms.max(outer.rms),
     })
+}
+
+/// `range` grown to whole chunks of four samples (the AVX2 sampler's), to the right as far as
+/// `count` allows and then to the left, so that no sample is left to the scalar tail. The extra
+/// samples are ones the profile holds anyway, and each depends on its index alone: the profile
+/// keeps its bits.
+fn in_chunks(range: std::ops::Range<usize>, count: usize) -> std::ops::Range<usize> {
+    let want = range.len().div_ceil(4) * 4;
+    if want == 0 {
+        return range;
+    }
+    let end = (range.start + want).min(count);
+    end.saturating_sub(want)..end
 }
 
 /// A least-squares line through a stretch of a ray profile.
