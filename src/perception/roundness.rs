@@ -117,15 +117,15 @@ fn filtered_roundness_avx2(
 }
 
 /// `sum_k a_k cos k theta_i + b_k sin k theta_i` for every point `i`, summed over `k` in
-/// ascending order, into `out`; `columns` holds `cos k theta_i` for all `i`, then `sin k
-/// theta_i`, for `k = 1, 2, ...`. Harmonic by harmonic over all points, so the loop runs in
-/// vector lanes; each point sees the same additions in the same order as a sum over its row.
+/// ascending order, into `out`; `columns[k - 1]` holds `cos k theta_i` for all `i`, then `sin k
+/// theta_i`. Harmonic by harmonic over all points, so the loop runs in vector lanes; each point
+/// sees the same additions in the same order as a sum over its row.
 #[inline(always)]
-fn series_values(columns: &[f64], harmonics: &[(f64, f64)], out: &mut [f64]) {
+fn series_values(columns: &[Vec<f64>], harmonics: &[(f64, f64)], out: &mut [f64]) {
     let n = out.len();
     out.fill(0.0);
-    for (pair, &(a, b)) in columns.chunks_exact(2 * n).zip(harmonics) {
-        let (cos_k, sin_k) = pair.split_at(n);
+    for (pair, &(a, b)) in columns.iter().zip(harmonics) {
+        let (cos_k, sin_k) = pair.split_at(n.min(pair.len()));
         for ((o, &c), &s) in out.iter_mut().zip(cos_k).zip(sin_k) {
             *o += a * c + b * s;
         }
@@ -176,30 +176,23 @@ fn filtered_roundness_kernel(
         }
     }
     // ... and harmonic by harmonic (for the series at every point, see `series_values`), by the
-    // same rotation run over all points at once.
-    let mut columns = vec![0.0f64; 2 * n * k_max];
+    // same rotation run over all points at once: `cos k theta_i` for all `i`, then the sines.
+    let mut columns: Vec<Vec<f64>> = Vec::with_capacity(k_max);
     if k_max > 0 {
-        let (cos_1, sin_1) = columns[..2 * n].split_at_mut(n);
-        for ((c, s), p) in cos_1.iter_mut().zip(sin_1.iter_mut()).zip(&polar) {
-            [*c, *s] = p.2;
+        let first: Vec<f64> = (polar.iter().map(|p| p.2[0]))
+            .chain(polar.iter().map(|p| p.2[1]))
+            .collect();
+        for _ in 1..k_max {
+            let (cos_1, sin_1) = first.split_at(n);
+            let previous = columns.last().unwrap_or(&first);
+            let (cos_prev, sin_prev) = previous.split_at(n);
+            let pairs = || cos_prev.iter().zip(sin_prev).zip(cos_1.iter().zip(sin_1));
+            let next: Vec<f64> = (pairs().map(|((&c, &s), (&c1, &s1))| c * c1 - s * s1))
+                .chain(pairs().map(|((&c, &s), (&c1, &s1))| s * c1 + c * s1))
+                .collect();
+            columns.push(next);
         }
-    }
-    for k in 1..k_max {
-        let (done, todo) = columns.split_at_mut(2 * n * k);
-        let (cos_1, sin_1) = done[..2 * n].split_at(n);
-        let (cos_prev, sin_prev) = done[2 * n * (k - 1)..].split_at(n);
-        let (cos_next, sin_next) = todo[..2 * n].split_at_mut(n);
-        for (((((cn, sn), &c), &s), &c1), &s1) in cos_next
-            .iter_mut()
-            .zip(sin_next.iter_mut())
-            .zip(cos_prev)
-            .zip(sin_prev)
-            .zip(cos_1)
-            .zip(sin_1)
-        {
-            *cn = c * c1 - s * s1;
-            *sn = s * c1 + c * s1;
-        }
+        columns.insert(0, first);
     }
     let mut mean_radius = polar.iter().map(|p| p.1).sum::<f64>() / n as f64;
     let mut harmonics = vec![(0.0f64, 0.0f64); k_max];
