@@ -247,7 +247,7 @@ mod tests {
         let mut rng = crate::rng::SimRng::new(11);
         for trial in 0..200 {
             let n = 10 + (rng.next_u64() % 300) as usize;
-            let order = (trial % (MAX_ROBUST_ORDER + 1)) as usize;
+            let order = trial % (MAX_ROBUST_ORDER + 1);
             let (units, radii): (Vec<[f64; 2]>, Vec<f64>) = (0..n)
                 .map(|i| {
                     let t = std::f64::consts::TAU * i as f64 / n as f64;
