@@ -37,9 +37,8 @@ use crate::perception::error::PerceptionError;
 use crate::perception::filters::FilterMethod;
 use crate::perception::integer_edges::{canny_points, integer_fit};
 use crate::perception::rim::{RimParams, scan_rim};
-use crate::perception::roundness::{
-    DEFAULT_MAX_UPR, filtered_roundness_bridged, fit_series_robust, median_of,
-};
+use crate::perception::robust_series::fit_series_robust;
+use crate::perception::roundness::{DEFAULT_MAX_UPR, filtered_roundness_bridged, median_of};
 use crate::perception::subpixel::{EdgePoint, RayDir, RayParams, refine_ray};
 use crate::perception::threshold::{
     ThresholdMethod, adaptive_mean_threshold_floored, brighten_above, otsu_level,

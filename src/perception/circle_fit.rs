@@ -157,19 +157,30 @@ pub fn refine_geometric(
     let [mut a, mut b] = start.centre;
     let mut r = start.radius;
     for _ in 0..50 {
-        let mut jtj = Matrix3::<f64>::zeros();
-        let mut jtr = Vector3::<f64>::zeros();
+        // The six distinct entries of the symmetric normal matrix, each the same sum of the same
+        // products as the full outer product would give it.
+        let [mut s00, mut s01, mut s02, mut s11, mut s12, mut s22] = [0.0f64; 6];
+        let [mut g0, mut g1, mut g2] = [0.0f64; 3];
         for p in points {
             let (dx, dy) = (p[0] - a, p[1] - b);
             let d = distance(dx, dy);
             if d <= f64::EPSILON {
                 continue;
             }
-            let row = Vector3::new(-dx / d, -dy / d, -1.0);
+            let (r0, r1, r2) = (-dx / d, -dy / d, -1.0);
             let residual = d - r;
-            jtj += row * row.transpose();
-            jtr += row * residual;
+            s00 += r0 * r0;
+            s01 += r0 * r1;
+            s02 += r0 * r2;
+            s11 += r1 * r1;
+            s12 += r1 * r2;
+            s22 += r2 * r2;
+            g0 += r0 * residual;
+            g1 += r1 * residual;
+            g2 += r2 * residual;
         }
+        let jtj = Matrix3::new(s00, s01, s02, s01, s11, s12, s02, s12, s22);
+        let jtr = Vector3::new(g0, g1, g2);
         let Some(step) = jtj.lu().solve(&(-jtr)) else {
             return Err(PerceptionError::DegenerateFit {
                 point_count: points.len(),
@@ -256,6 +267,53 @@ mod tests {
             let points = noisy_circle(0.0, 0.0, 50.0, 200, 1.0, std::f64::consts::PI, seed);
             let geometric = fit_geometric(&points).map_err(|e| TestCaseError::fail(e.to_string()))?;
             prop_assert!((geometric.radius - 50.0).abs() < 1.0);
+        }
+    }
+
+    /// Gauss-Newton as first written, with full outer products: the reference for the bits.
+    fn reference_refine(points: &[[f64; 2]], start: CircleFit) -> [f64; 3] {
+        let [mut a, mut b] = start.centre;
+        let mut r = start.radius;
+        for _ in 0..50 {
+            let mut jtj = Matrix3::<f64>::zeros();
+            let mut jtr = Vector3::<f64>::zeros();
+            for p in points {
+                let (dx, dy) = (p[0] - a, p[1] - b);
+                let d = distance(dx, dy);
+                if d <= f64::EPSILON {
+                    continue;
+                }
+                let row = Vector3::new(-dx / d, -dy / d, -1.0);
+                jtj += row * row.transpose();
+                jtr += row * (d - r);
+            }
+            let Some(step) = jtj.lu().solve(&(-jtr)) else {
+                return [f64::NAN; 3];
+            };
+            a += step[0];
+            b += step[1];
+            r += step[2];
+            if step.norm() <= 1e-12 * r.abs().max(1.0) {
+                break;
+            }
+        }
+        [a, b, r]
+    }
+
+    proptest! {
+        #[test]
+        fn geometric_refinement_has_the_reference_bits(
+            r in 5.0f64..200.0, n in 8usize..500, arc in 1.0f64..6.3, seed in any::<u64>()
+        ) {
+            let points = noisy_circle(3.5, -7.25, r, n, 0.3, arc, seed);
+            let start = fit_pratt(&points).map_err(|e| TestCaseError::fail(e.to_string()))?;
+            let fit = refine_geometric(&points, start)
+                .map_err(|e| TestCaseError::fail(e.to_string()))?;
+            let bits = |v: [f64; 3]| v.map(f64::to_bits);
+            prop_assert_eq!(
+                bits([fit.centre[0], fit.centre[1], fit.radius]),
+                bits(reference_refine(&points, start))
+            );
         }
     }
 

@@ -177,7 +177,9 @@ fn trace(
     from_dir: usize,
     number: u32,
 ) -> Vec<[i32; 2]> {
-    let at = |p: usize| [(p % stride) as i32 - 1, (p / stride) as i32 - 1];
+    // Image coordinates of the current pixel, stepped along with it (a division per pixel to
+    // recover them from the index was the tracing's largest cost).
+    let (start_x, start_y) = ((start % stride) as i32 - 1, (start / stride) as i32 - 1);
     let step = |p: usize, d: usize| p.wrapping_add_signed(offsets[d]);
     // First bright neighbour clockwise from the dark one.
     let Some(first_dir) = (0..8)
@@ -186,15 +188,17 @@ fn trace(
     else {
         state[start] = MARKED_EAST;
         label[start] = number;
-        return vec![at(start)];
+        return vec![[start_x, start_y]];
     };
     let first = step(start, first_dir);
+    let last_column = width as i32 - 1;
     let mut points = Vec::new();
     let mut current = start;
+    let mut here = [start_x, start_y];
     // Direction from `current` to the previous border pixel.
     let mut back_dir = first_dir;
     loop {
-        points.push(at(current));
+        points.push(here);
         // Counter-clockwise from the one after the previous pixel, to the next bright one.
         let mut east_dark = false;
         let mut next_dir = back_dir;
@@ -209,7 +213,7 @@ fn trace(
             }
         }
         let next = step(current, next_dir);
-        if east_dark || current % stride == width {
+        if east_dark || here[0] == last_column {
             state[current] = MARKED_EAST;
             label[current] = number;
         } else if state[current] == UNVISITED {
@@ -221,6 +225,8 @@ fn trace(
         }
         back_dir = (next_dir + 4) % 8;
         current = next;
+        let (dx, dy) = STEPS[next_dir];
+        here = [here[0] + dx as i32, here[1] + dy as i32];
     }
 }
 

@@ -100,30 +100,32 @@ fn median_3x3_kernel(image: &GrayImage) -> GrayImage {
     }
     let src = image.as_raw();
     let dst: &mut [u8] = &mut out;
-    // Rows padded by one replicated pixel on each side.
+    // Sorted column triples, padded by one replicated column on each side: the border pixel's
+    // own triple (replicating a column replicates its triple), so no row is copied.
     let pw = w + 2;
     let mut lo = vec![0u8; pw];
     let mut mid = vec![0u8; pw];
     let mut hi = vec![0u8; pw];
-    let mut padded = [vec![0u8; pw], vec![0u8; pw], vec![0u8; pw]];
-    let pad_row = |row: &[u8], dst: &mut [u8]| {
-        dst[1..=w].copy_from_slice(row);
-        dst[0] = row[0];
-        dst[w + 1] = row[w - 1];
-    };
     for y in 0..h {
-        let rows = [y.saturating_sub(1), y, (y + 1).min(h - 1)];
-        for (buf, &r) in padded.iter_mut().zip(rows.iter()) {
-            pad_row(&src[r * w..(r + 1) * w], buf);
-        }
-        let (a, b, c) = (&padded[0], &padded[1], &padded[2]);
-        for i in 0..pw {
-            let (p, q, r) = (a[i], b[i], c[i]);
+        let row = |r: usize| &src[r * w..(r + 1) * w];
+        let (a, b, c) = (row(y.saturating_sub(1)), row(y), row((y + 1).min(h - 1)));
+        for (((((l, m), u), &p), &q), &r) in lo[1..=w]
+            .iter_mut()
+            .zip(&mut mid[1..=w])
+            .zip(&mut hi[1..=w])
+            .zip(a)
+            .zip(b)
+            .zip(c)
+        {
             let (s0, s1) = (p.min(q), p.max(q));
             let s2 = s1.min(r);
-            hi[i] = s1.max(r);
-            lo[i] = s0.min(s2);
-            mid[i] = s0.max(s2);
+            *u = s1.max(r);
+            *l = s0.min(s2);
+            *m = s0.max(s2);
+        }
+        for v in [&mut lo, &mut mid, &mut hi] {
+            v[0] = v[1];
+            v[w + 1] = v[w];
         }
         let out_row = &mut dst[y * w..(y + 1) * w];
         for (x, o) in out_row.iter_mut().enumerate() {

@@ -27,6 +27,7 @@ pub mod filters;
 pub mod integer_edges;
 pub mod ray_samples;
 pub mod rim;
+pub mod robust_series;
 pub mod roundness;
 pub mod scene_draw;
 pub mod scene_space;

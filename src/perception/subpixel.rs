@@ -190,7 +190,7 @@ pub fn refine_ray(
     }
     // Only the samples the search and then the windows about the chosen step read are taken:
     // first the searched stretch, then what the windows need beyond it.
-    let searched = (low - span) as usize..(high + span + 1) as usize;
+    let searched = in_chunks((low - span) as usize..(high + span + 1) as usize, count);
     samples.fill(searched.clone(), scratch);
     let mut best: Option<(isize, f64)> = None;
     for j in low..=high {
@@ -205,8 +205,8 @@ pub fn refine_ray(
         (j - wing).max(0) as usize,
         (j + wing).min(last) as usize + 1,
     );
-    samples.fill(first..searched.start.max(first), scratch);
-    samples.fill(searched.end.min(end)..end, scratch);
+    samples.fill(in_chunks(first..searched.start.max(first), count), scratch);
+    samples.fill(in_chunks(searched.end.min(end)..end, count), scratch);
     let profile = scratch.as_slice();
     let (j, _) = best?;
     // The rim side stops short of a thin wall's outer edge.
@@ -246,6 +246,19 @@ pub fn refine_ray(
     })
 }
 
+/// `range` grown to whole chunks of four samples (the AVX2 sampler's), to the right as far as
+/// `count` allows and then to the left, so that no sample is left to the scalar tail. The extra
+/// samples are ones the profile holds anyway, and each depends on its index alone: the profile
+/// keeps its bits.
+fn in_chunks(range: std::ops::Range<usize>, count: usize) -> std::ops::Range<usize> {
+    let want = range.len().div_ceil(4) * 4;
+    if want == 0 {
+        return range;
+    }
+    let end = (range.start + want).min(count);
+    end.saturating_sub(want)..end
+}
+
 /// A least-squares line through a stretch of a ray profile.
 struct Flank {
     /// Mean sample index.
@@ -267,18 +280,23 @@ impl Flank {
         let n = values.len() as f64;
         let mean_offset = (n - 1.0) / 2.0;
         let mean_level = values.iter().sum::<f64>() / n;
-        let (mut sxy, mut sxx) = (0.0, 0.0);
-        for (i, &v) in values.iter().enumerate() {
-            let x = i as f64 - mean_offset;
+        // The abscissae `i - mean_offset` are multiples of a half and their squares of a
+        // quarter, so stepping them by one and summing their squares in closed form, n (n^2 - 1)
+        // / 12, is exact: the same bits as converting each index and summing the squares.
+        let sxx = n * (n * n - 1.0) / 12.0;
+        let mut sxy = 0.0;
+        let mut x = -mean_offset;
+        for &v in values {
             sxy += x * (v - mean_level);
-            sxx += x * x;
+            x += 1.0;
         }
         let slope = if sxx > 0.0 { sxy / sxx } else { 0.0 };
-        let sum_sq: f64 = values
-            .iter()
-            .enumerate()
-            .map(|(i, &v)| (v - mean_level - slope * (i as f64 - mean_offset)).powi(2))
-            .sum();
+        let mut sum_sq = 0.0;
+        let mut x = -mean_offset;
+        for &v in values {
+            sum_sq += (v - mean_level - slope * x).powi(2);
+            x += 1.0;
+        }
         Self {
             mean_index: a as f64 + mean_offset,
             mean_level,
@@ -364,6 +382,38 @@ mod tests {
             "mean radial error {}",
             sum / 360.0
         );
+    }
+
+    #[test]
+    fn flank_fits_have_the_bits_of_the_textbook_sums() {
+        let mut rng = crate::rng::SimRng::new(3);
+        for n in 1..24usize {
+            let profile: Vec<f64> = (0..n).map(|_| rng.range(0.0, 255.0)).collect();
+            let fit = Flank::fit(&profile, 0, n as isize - 1);
+            // Each abscissa converted from its index, every sum in order.
+            let count = n as f64;
+            let mean_offset = (count - 1.0) / 2.0;
+            let mean_level = profile.iter().sum::<f64>() / count;
+            let (mut sxy, mut sxx) = (0.0, 0.0);
+            for (i, &v) in profile.iter().enumerate() {
+                let x = i as f64 - mean_offset;
+                sxy += x * (v - mean_level);
+                sxx += x * x;
+            }
+            let slope = if sxx > 0.0 { sxy / sxx } else { 0.0 };
+            let sum_sq: f64 = profile
+                .iter()
+                .enumerate()
+                .map(|(i, &v)| (v - mean_level - slope * (i as f64 - mean_offset)).powi(2))
+                .sum();
+            assert_eq!(fit.slope.to_bits(), slope.to_bits(), "n {n}");
+            assert_eq!(
+                fit.rms.to_bits(),
+                (sum_sq / count).sqrt().to_bits(),
+                "n {n}"
+            );
+            assert_eq!(fit.mean_level.to_bits(), mean_level.to_bits(), "n {n}");
+        }
     }
 
     #[test]

@@ -79,23 +79,25 @@ pub fn adaptive_mean_threshold_floored(
         // SAFETY: the function only requires AVX2, which the CPU was just found to have.
         return unsafe { adaptive_mean_avx2(image, block_radius_px, delta, floor) };
     }
-    adaptive_mean_kernel(image, block_radius_px, delta, floor)
+    adaptive_mean_kernel(image, block_radius_px, delta, floor, false)
 }
 
 /// [`adaptive_mean_kernel`] compiled for AVX2.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 fn adaptive_mean_avx2(image: &GrayImage, block_radius_px: u32, delta: i32, floor: u8) -> GrayImage {
-    adaptive_mean_kernel(image, block_radius_px, delta, floor)
+    adaptive_mean_kernel(image, block_radius_px, delta, floor, true)
 }
 
-/// The body of [`adaptive_mean_threshold_floored`], inlined into each instruction-set variant.
+/// The body of [`adaptive_mean_threshold_floored`], inlined into each instruction-set variant;
+/// `avx2` only from the AVX2 build (it then runs the row prefixes with AVX2 too).
 #[inline(always)]
 fn adaptive_mean_kernel(
     image: &GrayImage,
     block_radius_px: u32,
     delta: i32,
     floor: u8,
+    avx2: bool,
 ) -> GrayImage {
     let (w, h) = (image.width() as usize, image.height() as usize);
     let mut out = GrayImage::new(image.width(), image.height());
@@ -112,8 +114,20 @@ fn adaptive_mean_kernel(
             *s += u32::from(p);
         }
     }
-    // Column sums reach 255 (2r+1), prefixes 255 (2r+1) w: u32 for any realistic frame.
-    let mut prefix = vec![0u32; w + 1];
+    // Column sums reach 255 (2r+1), prefixes 255 (2r+1) w: u32 for any realistic frame. The
+    // prefixes are padded with r zeros in front and r copies of the total behind, so that the
+    // block of every column, clipped at the border or not, is `padded[x + 2r + 1] - padded[x]`.
+    let mut padded = vec![0u32; w + 2 * r + 1];
+    // Columns in each block, clipped at the border.
+    let columns_in: Vec<f32> = (0..w)
+        .map(|x| ((x + r).min(w - 1) - x.saturating_sub(r) + 1) as f32)
+        .collect();
+    let offset = i64::from(delta) + 1;
+    // The decision runs in f32 lanes (SSE2 has no 32-bit integer multiply) so that the compiler
+    // vectorises it, exact while every product and sum stays below 2^24; the largest block
+    // (all (2r+1)^2 pixels) bounds them all.
+    let largest_count = ((2 * r + 1).min(h) * (2 * r + 1).min(w)) as i64;
+    let exact_in_f32 = largest_count * offset.abs().max((255 + offset).abs()).max(255) < 1 << 24;
     for y in 0..h {
         if y + r < h {
             let row = &src[(y + r) * w..(y + r + 1) * w];
@@ -130,54 +144,108 @@ fn adaptive_mean_kernel(
         let y_low = y.saturating_sub(r);
         let y_high = (y + r).min(h - 1);
         let rows_in = (y_high - y_low + 1) as i64;
-        let mut running = 0u32;
-        for (p, &s) in prefix[1..].iter_mut().zip(&column_sums) {
-            running = running.wrapping_add(s);
-            *p = running;
-        }
+        let running = row_running_sums(avx2, &column_sums, &mut padded[r + 1..r + 1 + w]);
+        padded[r + 1 + w..].fill(running);
         let src_row = &src[y * w..(y + 1) * w];
         let out_row = &mut dst[y * w..(y + 1) * w];
-        let decide = |x: usize, x_low: usize, x_high: usize| -> u8 {
-            let count = rows_in * (x_high - x_low + 1) as i64;
-            let sum = i64::from(prefix[x_high + 1].wrapping_sub(prefix[x_low]));
-            // p >= floor(sum / count) - delta  <=>  (p + delta + 1) * count > sum.
-            let k = i64::from(src_row[x]) + i64::from(delta) + 1;
-            if k * count > sum || src_row[x] > floor {
-                255
-            } else {
-                0
-            }
-        };
-        // Interior columns share one block size: a branch-free loop the compiler vectorises, in
-        // f32 lanes (SSE2 has no 32-bit integer multiply), exact while every product and sum
-        // stays below 2^24.
-        let count = rows_in * (2 * r + 1) as i64;
-        let offset = i64::from(delta) + 1;
-        let largest = count * offset.abs().max((255 + offset).abs()).max(255);
-        let (inner_low, inner_high) = if largest < 1 << 24 {
-            (r.min(w), w.saturating_sub(r))
-        } else {
-            (w, w)
-        };
-        for x in (0..inner_low).chain(inner_high.max(inner_low)..w) {
-            out_row[x] = decide(x, x.saturating_sub(r), (x + r).min(w - 1));
-        }
-        if inner_low < inner_high {
-            let (count, offset) = (count as f32, offset as f32);
-            let (high, low) = (&prefix[inner_low + r + 1..], &prefix[..inner_high - r]);
-            for (((o, &p), &hi), &lo) in out_row[inner_low..inner_high]
+        let (high, low) = (&padded[2 * r + 1..], &padded[..w]);
+        if exact_in_f32 {
+            let (rows_in, offset) = (rows_in as f32, offset as f32);
+            for ((((o, &p), &hi), &lo), &columns) in out_row
                 .iter_mut()
-                .zip(&src_row[inner_low..inner_high])
+                .zip(src_row)
                 .zip(high)
                 .zip(low)
+                .zip(&columns_in)
             {
                 let sum = hi.wrapping_sub(lo) as i32 as f32;
                 let k = f32::from(p) + offset;
+                *o = if k * (rows_in * columns) > sum || p > floor {
+                    255
+                } else {
+                    0
+                };
+            }
+        } else {
+            // p >= floor(sum / count) - delta  <=>  (p + delta + 1) * count > sum.
+            for ((((o, &p), &hi), &lo), &columns) in out_row
+                .iter_mut()
+                .zip(src_row)
+                .zip(high)
+                .zip(low)
+                .zip(&columns_in)
+            {
+                let count = rows_in * columns as i64;
+                let sum = i64::from(hi.wrapping_sub(lo));
+                let k = i64::from(p) + offset;
                 *o = if k * count > sum || p > floor { 255 } else { 0 };
             }
         }
     }
     out
+}
+
+/// [`running_sums`], with AVX2 when `avx2` (set only by the AVX2 build).
+#[inline(always)]
+fn row_running_sums(avx2: bool, values: &[u32], out: &mut [u32]) -> u32 {
+    #[cfg(target_arch = "x86_64")]
+    if avx2 {
+        // SAFETY: `avx2` is only set by the AVX2 build, on a CPU found to have it.
+        return unsafe { running_sums_avx2(values, out) };
+    }
+    let _ = avx2;
+    running_sums(values, out)
+}
+
+/// Running (inclusive, wrapping) sums of `values` into `out`, of the same length; returns the
+/// total.
+fn running_sums(values: &[u32], out: &mut [u32]) -> u32 {
+    let mut running = 0u32;
+    for (o, &v) in out.iter_mut().zip(values) {
+        running = running.wrapping_add(v);
+        *o = running;
+    }
+    running
+}
+
+/// [`running_sums`], eight at a time: a log-step scan inside each 128-bit lane, the low lane's
+/// total added to the high one, then the sum of all before. Integer sums: the same values.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn running_sums_avx2(values: &[u32], out: &mut [u32]) -> u32 {
+    use std::arch::x86_64::{
+        __m256i, _mm256_add_epi32, _mm256_loadu_si256, _mm256_permute2x128_si256,
+        _mm256_permutevar8x32_epi32, _mm256_set1_epi32, _mm256_setzero_si256, _mm256_shuffle_epi32,
+        _mm256_slli_si256, _mm256_storeu_si256,
+    };
+    let n = values.len().min(out.len());
+    let (values, out) = (&values[..n], &mut out[..n]);
+    let mut carry = _mm256_setzero_si256();
+    let mut chunks = out.chunks_exact_mut(8);
+    for (o, v) in (&mut chunks).zip(values.chunks_exact(8)) {
+        // SAFETY: `v` holds exactly eight `u32`, an unaligned load's 32 bytes.
+        let mut x = unsafe { _mm256_loadu_si256(v.as_ptr().cast::<__m256i>()) };
+        x = _mm256_add_epi32(x, _mm256_slli_si256::<4>(x));
+        x = _mm256_add_epi32(x, _mm256_slli_si256::<8>(x));
+        // Element 3 (the low lane's total) into the high lane, zeros into the low one.
+        let lane_totals = _mm256_shuffle_epi32::<0xFF>(x);
+        x = _mm256_add_epi32(
+            x,
+            _mm256_permute2x128_si256::<0x08>(lane_totals, lane_totals),
+        );
+        let sums = _mm256_add_epi32(x, carry);
+        // SAFETY: `o` holds exactly eight `u32`, an unaligned store's 32 bytes.
+        unsafe { _mm256_storeu_si256(o.as_mut_ptr().cast::<__m256i>(), sums) };
+        // The chunk's own total is broadcast off the carry's chain: one add a chunk on it.
+        carry = _mm256_add_epi32(carry, _mm256_permutevar8x32_epi32(x, _mm256_set1_epi32(7)));
+    }
+    let done = n - chunks.into_remainder().len();
+    let mut running = if done > 0 { out[done - 1] } else { 0 };
+    for (o, &v) in out[done..].iter_mut().zip(&values[done..]) {
+        running = running.wrapping_add(v);
+        *o = running;
+    }
+    running
 }
 
 /// Bright where `p >= Gaussian blur of the image - delta`.
@@ -336,7 +404,7 @@ mod tests {
             let oracle = imageproc::contrast::adaptive_threshold(&image, radius, delta);
             prop_assert_eq!(ours.as_raw(), oracle.as_raw());
             // The baseline build too, whichever the dispatch picked.
-            let portable = adaptive_mean_kernel(&image, radius, delta, u8::MAX);
+            let portable = adaptive_mean_kernel(&image, radius, delta, u8::MAX, false);
             prop_assert_eq!(portable.as_raw(), oracle.as_raw());
         }
 
@@ -348,7 +416,7 @@ mod tests {
             brighten_above(&mut oracle, &image, floor);
             let ours = adaptive_mean_threshold_floored(&image, radius, delta, floor);
             prop_assert_eq!(ours.as_raw(), oracle.as_raw());
-            let portable = adaptive_mean_kernel(&image, radius, delta, floor);
+            let portable = adaptive_mean_kernel(&image, radius, delta, floor, false);
             prop_assert_eq!(portable.as_raw(), oracle.as_raw());
         }
 
@@ -364,8 +432,25 @@ mod tests {
             let ours = adaptive_mean_threshold(&image, 20, delta);
             let oracle = imageproc::contrast::adaptive_threshold(&image, 20, delta);
             prop_assert_eq!(ours.as_raw(), oracle.as_raw());
-            let portable = adaptive_mean_kernel(&image, 20, delta, u8::MAX);
+            let portable = adaptive_mean_kernel(&image, 20, delta, u8::MAX, false);
             prop_assert_eq!(portable.as_raw(), oracle.as_raw());
+        }
+
+        #[test]
+        fn both_builds_of_the_running_sums_agree(
+            values in proptest::collection::vec(any::<u32>(), 0..70)
+        ) {
+            let mut scalar = vec![0u32; values.len()];
+            let total = running_sums(&values, &mut scalar);
+            prop_assert_eq!(total, scalar.last().copied().unwrap_or(0));
+            #[cfg(target_arch = "x86_64")]
+            if std::arch::is_x86_feature_detected!("avx2") {
+                let mut wide = vec![0u32; values.len()];
+                // SAFETY: the CPU has AVX2 (checked above).
+                let wide_total = unsafe { running_sums_avx2(&values, &mut wide) };
+                prop_assert_eq!(&wide, &scalar);
+                prop_assert_eq!(wide_total, total);
+            }
         }
 
         #[test]
