@@ -339,8 +339,10 @@ pub fn place_bottles(
     let bottle = &scenario.bottle;
     let [low, high] = bottle.count_range;
     // A fixed count draws nothing, so the paper's one-bottle trials keep their random stream.
+    // Validation keeps the counts in [1, 8].
+    let (low, high) = (low.max(0) as u64, high.max(0) as u64);
     let count = if high > low {
-        low as usize + rng.below(u64::from(high - low) + 1) as usize
+        (low + rng.below(high - low + 1)) as usize
     } else {
         low as usize
     };

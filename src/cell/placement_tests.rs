@@ -101,8 +101,8 @@ fn a_lying_bottle_is_a_rectangle_not_a_disc() {
 fn random_scenario(rng: &mut SimRng) -> Scenario {
     let mut scenario = paper();
     let b = &mut scenario.bottle;
-    let low = 1 + rng.below(3) as u32;
-    b.count_range = [low, low + rng.below(2) as u32];
+    let low = 1 + rng.below(3) as i64;
+    b.count_range = [low, low + rng.below(2) as i64];
     b.lying_fraction = [0.0, 0.5, 1.0, rng.uniform()][rng.below(4) as usize];
     let near = rng.range(0.06, 0.16);
     b.distance_range_m = [near, near + rng.range(0.0, 0.1)];

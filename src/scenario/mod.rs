@@ -274,8 +274,9 @@ pub struct BottleSection {
     /// Share of bottles that lie on their side.
     pub lying_fraction: f64,
     /// How many bottles a single-part trial puts near its part, `[fewest, most]`, drawn
-    /// uniformly (a stream's bottles come from `stream.bottles` instead).
-    pub count_range: [u32; 2],
+    /// uniformly (a stream's bottles come from `stream.bottles` instead). Signed, so that a
+    /// negative count is refused by validation with the key's range, not by the TOML reader.
+    pub count_range: [i64; 2],
     /// When set, the first bottle's gap to the part, `[least, most]`, m: the distance between
     /// their footprints (a standing bottle's disc, a lying bottle's rectangle), not between
     /// centres. The other bottles, and the first when this is unset, keep their centres

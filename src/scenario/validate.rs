@@ -21,7 +21,7 @@ pub const MAX_BELT_SPEED_M_S: f64 = 5.0;
 /// Highest friction coefficient accepted (rubber on steel is about 1).
 pub const MAX_FRICTION: f64 = 5.0;
 /// Most bottles a single-part trial may put near its part.
-pub const MAX_BOTTLES: u32 = 8;
+pub const MAX_BOTTLES: i64 = 8;
 
 /// A scenario file that cannot be used.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
