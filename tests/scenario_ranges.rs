@@ -150,3 +150,74 @@ fn values_inside_the_ranges_are_accepted() {
         load(&table).unwrap_or_else(|e| panic!("{key} = {value}: {e}"));
     }
 }
+
+fn ints(values: &[i64]) -> Value {
+    Value::Array(values.iter().map(|&v| Value::Integer(v)).collect())
+}
+
+fn floats(values: &[f64]) -> Value {
+    Value::Array(values.iter().map(|&v| Value::Float(v)).collect())
+}
+
+#[test]
+fn bottle_counts_outside_one_to_eight_are_refused_with_the_range() {
+    let base = smoke();
+    for bad in [
+        [0, 0],
+        [0, 2],
+        [3, 2],
+        [1, 9],
+        [9, 9],
+        [-1, 2],
+        [i64::MIN, i64::MAX],
+    ] {
+        let mut table = base.clone();
+        *slot(&mut table, "bottle.count_range") = ints(&bad);
+        let err = load(&table).expect_err(&format!("count_range {bad:?} was accepted"));
+        assert!(
+            err.starts_with("edited.toml: bottle.count_range: must be [fewest, most] with 1 <= fewest <= most <= 8"),
+            "{bad:?}: {err}"
+        );
+    }
+    for fine in [[1, 1], [2, 3], [1, 8], [8, 8]] {
+        let mut table = base.clone();
+        *slot(&mut table, "bottle.count_range") = ints(&fine);
+        let scenario = load(&table).unwrap_or_else(|e| panic!("{fine:?}: {e}"));
+        assert_eq!(scenario.bottle.count_range, fine);
+    }
+}
+
+#[test]
+fn near_gaps_outside_zero_to_half_a_metre_are_refused_with_the_range() {
+    let base = smoke();
+    let absurd = [
+        [-0.001, 0.01],
+        [0.02, 0.01],
+        [0.0, 0.5 + 1e-9],
+        [0.0, f64::INFINITY],
+        [f64::NAN, 0.01],
+        [0.0, -1e308],
+        [1e308, 1e308],
+    ];
+    for bad in absurd {
+        let mut table = base.clone();
+        *slot(&mut table, "bottle.near_gap_range_m") = floats(&bad);
+        let err = load(&table).expect_err(&format!("near_gap_range_m {bad:?} was accepted"));
+        assert!(
+            err.starts_with(
+                "edited.toml: bottle.near_gap_range_m: must be [least, most] with 0 <= least <= most <= 0.5 m"
+            ),
+            "{bad:?}: {err}"
+        );
+    }
+    for fine in [[0.0, 0.0], [0.0, 0.01], [0.3, 0.5]] {
+        let mut table = base.clone();
+        *slot(&mut table, "bottle.near_gap_range_m") = floats(&fine);
+        let scenario = load(&table).unwrap_or_else(|e| panic!("{fine:?}: {e}"));
+        assert_eq!(scenario.bottle.near_gap_range_m, Some(fine));
+    }
+    // Unset, the paper's one bottle keeps its centre distance.
+    let scenario = load(&base).expect("smoke");
+    assert_eq!(scenario.bottle.near_gap_range_m, None);
+    assert_eq!(scenario.bottle.count_range, [1, 1]);
+}

@@ -1,11 +1,12 @@
 //! Building the cell's physics world from a scenario, through `sim`: the scenery, the belt and
-//! its photo-eye, the bins, the arm at home, and the trial's part and bottle.
+//! its photo-eye, the bins, the arm at home, and the trial's part and its bottles.
 
 use std::path::PathBuf;
 
 use nalgebra::{Isometry3, Vector3};
 use rapier3d::prelude::*;
 
+use super::placement::{PartSpot, PlacementError, place_bottles};
 use crate::kinematics::{ArmModel, gripper_tcp};
 use crate::math::pose_to_physics;
 use crate::rng::SimRng;
@@ -24,6 +25,9 @@ pub enum CellError {
     /// The scenario lacks something the cell needs.
     #[error("scenario: {0}")]
     Scenario(String),
+    /// The trial's bottles fit nowhere the scenario allows.
+    #[error(transparent)]
+    Placement(#[from] PlacementError),
 }
 
 /// A bin in the world.
@@ -60,7 +64,7 @@ pub struct Cell {
     pub conveyor: ConveyorHooks,
     /// The photo-eye's sensor collider.
     pub photo_eye: ColliderHandle,
-    /// Every part and bottle in the world: the trial's first part (index 0) and bottle, then
+    /// Every part and bottle in the world: the trial's first part (index 0) and bottles, then
     /// whatever a stream's feeder adds.
     pub items: ItemSet,
     /// The bins.
@@ -281,8 +285,13 @@ impl Cell {
         items.insert_part(&mut world, part, part_xy, belt_top_z);
 
         if scenario.bottle.enabled {
-            let placement = bottle_near_part(scenario, part_xy, part_radius_m, rng);
-            items.insert_bottle(&mut world, &scenario.bottle, placement, belt_top_z);
+            let part = PartSpot {
+                xy: part_xy,
+                radius: part_radius_m,
+            };
+            for placement in place_bottles(scenario, part, rng)? {
+                items.insert_bottle(&mut world, &scenario.bottle, placement, belt_top_z);
+            }
         }
 
         let home = scenario.robot.home_q_rad;
@@ -386,45 +395,4 @@ fn spawn_xy(scenario: &Scenario, lateral: f64) -> [f64; 2] {
         belt.photo_eye_x_m - belt.spawn_upstream_m,
         belt.belt_center_m[1] + lateral,
     ]
-}
-
-/// Where the trial's bottle goes: near the part, on the belt and clear of it.
-fn bottle_near_part(
-    scenario: &Scenario,
-    part_xy: [f64; 2],
-    part_radius: f64,
-    rng: &mut SimRng,
-) -> BottlePlacement {
-    let bottle = &scenario.bottle;
-    let belt = &scenario.conveyor;
-    let lying = rng.uniform() < bottle.lying_fraction;
-    let footprint = if lying {
-        bottle.height_m / 2.0
-    } else {
-        bottle.radius_m
-    };
-    let y_low = belt.belt_center_m[1] - belt.width_m / 2.0 + footprint.min(belt.width_m / 2.0);
-    let y_high = belt.belt_center_m[1] + belt.width_m / 2.0 - footprint.min(belt.width_m / 2.0);
-    let mut xy = [part_xy[0] + bottle.distance_range_m[1], part_xy[1]];
-    for _ in 0..64 {
-        let distance = rng.range(bottle.distance_range_m[0], bottle.distance_range_m[1]);
-        let angle = rng.range(0.0, std::f64::consts::TAU);
-        let candidate = [
-            part_xy[0] + distance * angle.cos(),
-            part_xy[1] + distance * angle.sin(),
-        ];
-        if candidate[1] >= y_low
-            && candidate[1] <= y_high
-            && distance > part_radius + footprint + 0.01
-        {
-            xy = candidate;
-            break;
-        }
-    }
-    let yaw = rng.range(0.0, std::f64::consts::TAU);
-    BottlePlacement {
-        xy,
-        lying,
-        yaw_rad: yaw,
-    }
 }

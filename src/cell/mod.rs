@@ -2,7 +2,9 @@
 //! photo-eye, bins, the trial's part and bottle.
 
 mod layout;
+mod placement;
 
 pub use crate::kinematics::gripper_tcp;
 pub use crate::sim::{BoreForm, ConveyorHooks, PartInstance, Tag};
 pub use layout::{BinBody, Cell, CellError, SceneryBox};
+pub use placement::{CLEARANCE_M, Footprint, PartSpot, PlacementError, place_bottles};

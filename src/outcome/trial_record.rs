@@ -61,6 +61,9 @@ pub enum FailureReason {
     PerceptionError,
     /// Perception took a part for a bottle or a bottle for a part at the photo-eye.
     Misidentified,
+    /// The cell found no place for the trial's items that the scenario allows (bottles that
+    /// fit nowhere on the belt near the part).
+    Placement,
 }
 
 impl FailureReason {
@@ -81,6 +84,7 @@ impl FailureReason {
             Self::Panic => "panic",
             Self::PerceptionError => "perception_error",
             Self::Misidentified => "misidentified",
+            Self::Placement => "placement",
         }
     }
 }

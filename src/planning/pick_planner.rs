@@ -95,6 +95,34 @@ pub fn scenery_obstacles(
         .collect()
 }
 
+/// Tilts of the gripper the pick search tries, upright first, deg.
+const TILTS_DEG: [f64; 5] = [0.0, 25.0, -25.0, 40.0, -40.0];
+/// Yaws the pick search tries first at each tilt, from the preferred one, deg.
+pub(super) const COARSE_YAWS_DEG: [f64; 10] = [
+    0.0, 180.0, 30.0, -30.0, 210.0, 150.0, 60.0, -60.0, 90.0, 270.0,
+];
+
+/// Every 10 degrees of yaw that [`COARSE_YAWS_DEG`] leaves out, those nearest the preferred
+/// yaw (or its half-turn, the same jaw line) first.
+pub(super) fn fine_yaws_deg() -> impl Iterator<Item = f64> {
+    let coarse = |deg: f64| {
+        COARSE_YAWS_DEG
+            .iter()
+            .any(|c| (c - deg).rem_euclid(360.0).abs() < 1e-9)
+    };
+    let mut fine: Vec<f64> = (0..36)
+        .map(|k| f64::from(k) * 10.0)
+        .filter(|&deg| !coarse(deg))
+        .collect();
+    // Distance to the jaw line of the preferred yaw: 0 at 0 and 180 degrees, 90 at 90 and 270.
+    let off_line = |deg: f64| {
+        let d = deg.rem_euclid(180.0);
+        d.min(180.0 - d)
+    };
+    fine.sort_by(|a, b| off_line(*a).total_cmp(&off_line(*b)).then(a.total_cmp(b)));
+    fine.into_iter()
+}
+
 impl PickPlanner {
     /// The collision checker for a pick of `percept`'s part: the cell's obstacles, the part
     /// itself (until the fingers go down around it) and what perception saw near it.
@@ -188,16 +216,19 @@ impl PickPlanner {
         let mut last_hit = String::new();
         // Upright first, then leaning away from either side: a tall bottle next to the part can
         // stand where an upright wrist or forearm would pass.
-        let candidates = [0.0, 25.0, -25.0, 40.0, -40.0]
-            .into_iter()
-            .flat_map(|tilt_deg| {
-                [
-                    0.0, 180.0, 30.0, -30.0, 210.0, 150.0, 60.0, -60.0, 90.0, 270.0,
-                ]
+        let candidates = TILTS_DEG.into_iter().flat_map(|tilt_deg| {
+            COARSE_YAWS_DEG
                 .into_iter()
                 .map(move |offset_deg: f64| (tilt_deg, offset_deg))
-            });
-        for (tilt_deg, offset_deg) in candidates {
+        });
+        // Then, when none of those is clear, the yaws between them every 10 degrees, nearest
+        // the preferred first: with several bottles around the part, the one near it fixes the
+        // jaws' line within a few degrees and another bottle can stand on that line. These come
+        // after every coarse candidate, so a pick that one of those allowed is planned as before.
+        let fine = TILTS_DEG
+            .into_iter()
+            .flat_map(|tilt_deg| fine_yaws_deg().map(move |offset_deg| (tilt_deg, offset_deg)));
+        for (tilt_deg, offset_deg) in candidates.chain(fine) {
             let yaw = preferred_yaw + f64::to_radians(offset_deg);
             let tilt = f64::to_radians(tilt_deg);
             // A leaning jaw's lower corner hangs deeper: raise the TCP to keep the tips clear.

@@ -3,6 +3,7 @@
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use rapier3d::geometry::SharedShape;
 
+use super::pick_planner::{COARSE_YAWS_DEG, fine_yaws_deg};
 use super::*;
 use crate::cell::BinBody;
 use crate::kinematics::{AnalyticIk, ArmModel, gripper_tcp, tcp_pose};
@@ -304,4 +305,20 @@ fn a_place_goes_into_the_slot_and_retreats_home() {
         panic!("a bin 3 m away was reachable");
     };
     assert_eq!(failure.reason, FailureReason::Unreachable);
+}
+
+#[test]
+fn the_fine_yaws_fill_the_gaps_between_the_coarse_ones_nearest_the_jaw_line_first() {
+    let fine: Vec<f64> = fine_yaws_deg().collect();
+    let mut all: Vec<f64> = fine
+        .iter()
+        .copied()
+        .chain(COARSE_YAWS_DEG.iter().map(|d| d.rem_euclid(360.0)))
+        .collect();
+    all.sort_by(f64::total_cmp);
+    let every_ten: Vec<f64> = (0..36).map(|k| f64::from(k) * 10.0).collect();
+    assert_eq!(all, every_ten, "each 10 degrees once, coarse or fine");
+    assert_eq!(&fine[..4], &[10.0, 170.0, 190.0, 350.0]);
+    let off_line = |d: f64| (d % 180.0).min(180.0 - d % 180.0);
+    assert!(fine.windows(2).all(|w| off_line(w[0]) <= off_line(w[1])));
 }

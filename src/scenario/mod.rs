@@ -271,8 +271,18 @@ pub struct BottleSection {
     pub mass_kg: f64,
     /// Nearest and farthest centre distance from the part, m.
     pub distance_range_m: [f64; 2],
-    /// Share of trials where the bottle lies on its side.
+    /// Share of bottles that lie on their side.
     pub lying_fraction: f64,
+    /// How many bottles a single-part trial puts near its part, `[fewest, most]`, drawn
+    /// uniformly (a stream's bottles come from `stream.bottles` instead). Signed, so that a
+    /// negative count is refused by validation with the key's range, not by the TOML reader.
+    pub count_range: [i64; 2],
+    /// When set, the first bottle's gap to the part, `[least, most]`, m: the distance between
+    /// their footprints (a standing bottle's disc, a lying bottle's rectangle), not between
+    /// centres. The other bottles, and the first when this is unset, keep their centres
+    /// `distance_range_m` from the part's and at least 10 mm clear of it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub near_gap_range_m: Option<[f64; 2]>,
 }
 
 impl Default for BottleSection {
@@ -284,6 +294,8 @@ impl Default for BottleSection {
             mass_kg: 0.03,
             distance_range_m: [0.10, 0.16],
             lying_fraction: 0.0,
+            count_range: [1, 1],
+            near_gap_range_m: None,
         }
     }
 }

@@ -20,6 +20,8 @@ pub const MAX_CELL_REACH_M: f64 = 10.0;
 pub const MAX_BELT_SPEED_M_S: f64 = 5.0;
 /// Highest friction coefficient accepted (rubber on steel is about 1).
 pub const MAX_FRICTION: f64 = 5.0;
+/// Most bottles a single-part trial may put near its part.
+pub const MAX_BOTTLES: i64 = 8;
 
 /// A scenario file that cannot be used.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -466,6 +468,30 @@ impl Scenario {
             return Err(c.fail(
                 "bottle.distance_range_m",
                 format!("must be [near, far] with 0 < near <= far <= 2 m, got {near}, {far}"),
+            ));
+        }
+        let [fewest, most] = bottle.count_range;
+        if !(1 <= fewest && fewest <= most && most <= MAX_BOTTLES) {
+            return Err(c.fail(
+                "bottle.count_range",
+                format!(
+                    "must be [fewest, most] with 1 <= fewest <= most <= {MAX_BOTTLES}, got \
+                     {fewest}, {most}"
+                ),
+            ));
+        }
+        if let Some([least, most]) = bottle.near_gap_range_m
+            && !(least.is_finite()
+                && most.is_finite()
+                && 0.0 <= least
+                && least <= most
+                && most <= 0.5)
+        {
+            return Err(c.fail(
+                "bottle.near_gap_range_m",
+                format!(
+                    "must be [least, most] with 0 <= least <= most <= 0.5 m, got {least}, {most}"
+                ),
             ));
         }
         Ok(())

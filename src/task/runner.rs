@@ -141,7 +141,10 @@ impl TrialRunner for CellTrialRunner {
             Err(e) => TrialRecord::failed(
                 index,
                 seed,
-                FailureReason::PhysicsBlowUp,
+                match &e {
+                    CellError::Placement(_) => FailureReason::Placement,
+                    _ => FailureReason::PhysicsBlowUp,
+                },
                 format!("cell could not be built: {e}"),
             ),
         };
