@@ -282,8 +282,8 @@ const LYING_BOTTLE_SIDES: u32 = 16;
 /// the rolling constraint nor conserves energy: on a belt ramping at 1 m/s^2 a bottle lying
 /// across it lost its spin within a step and rode on at the belt's speed, then rolled on for
 /// metres once the belt stopped (off the belt's end and off the floor's edge in the suite's
-/// clutter trials), and one lying at 50-160 degrees to the belt sped up to 5-30 m/s
-/// (`tests/lying_bottle.rs`). A prism rests on a face and only tips over an edge when the
+/// clutter trials); at 32 of 48 yaws and belt speeds a bottle sped up to 1.8-30 m/s, and even
+/// one lying nearly along the belt moved 130 mm after the stop (`tests/lying_bottle.rs`). A prism rests on a face and only tips over an edge when the
 /// belt's acceleration exceeds g tan(180/16 degrees) = 1.95 m/s^2, twice the drive's ramp: the
 /// bottle rides the belt and stops with it, as a bottle does whose rolling resistance (its
 /// shoulder, ribs and label) holds it against the belt's gentle ramp.
