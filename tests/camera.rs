@@ -540,3 +540,51 @@ fn the_arm_at_home_does_not_occlude_the_pick_station() {
         "the arm covers {robot_pixels} pixels of the view"
     );
 }
+
+/// A renderer draws images of many sizes into a few size-class targets, made once each (the
+/// camera batch's memory stays flat, issue 17), and an image comes out the same whichever
+/// images the shared target held before.
+#[test]
+fn images_of_many_sizes_share_a_few_targets_and_come_out_the_same() {
+    let scenario = smoke();
+    let Ok(rig) = CameraRig::from_scenario(&scenario) else {
+        panic!("camera");
+    };
+    let sensor = golden_sensor(&scenario);
+    let mut renderer = renderer(RendererOptions::default());
+    let mut draw = |w: u32, h: u32| {
+        let s = shot(&scenario, &rig.with_resolution(w, h), &sensor, 7);
+        match s.render(&mut renderer) {
+            Ok(i) => i,
+            Err(e) => panic!("{w} x {h}: {e}"),
+        }
+    };
+    let first = draw(200, 150);
+    // Sizes from 64 x 48 to 512 x 512, drawn by a fixed LCG.
+    let mut state: u64 = 0x2545_f491_4f6c_dd1d;
+    let mut next = |lo: u32, hi: u32| {
+        state = state
+            .wrapping_mul(6_364_136_223_846_793_005)
+            .wrapping_add(1_442_695_040_888_963_407);
+        lo + ((state >> 33) % u64::from(hi - lo + 1)) as u32
+    };
+    let mut classes = std::collections::BTreeSet::from([(256, 256)]);
+    for _ in 0..14 {
+        let (w, h) = (next(64, 512), next(48, 512));
+        classes.insert((w.div_ceil(256) * 256, h.div_ceil(256) * 256));
+        let image = draw(w, h);
+        assert_eq!(image.dimensions(), (w, h));
+    }
+    let again = draw(200, 150);
+    assert!(
+        first == again,
+        "the 200 x 150 image changed after other sizes"
+    );
+    let made = renderer.target_allocations();
+    assert_eq!(
+        made,
+        classes.len() as u64,
+        "{made} targets for {} size classes",
+        classes.len()
+    );
+}

@@ -21,7 +21,7 @@ use super::pipeline::{
     ObjectUniform, build_pipeline, clip_from_camera, gpu_vertex,
 };
 use super::scene::{ObjectKind, Scene, SceneObject};
-use super::targets::{MAX_TARGET_SIZES, Targets};
+use super::targets::{TargetCache, Targets, padded_row};
 
 /// The shading pipelines for one light count.
 struct Shaded {
@@ -46,7 +46,7 @@ pub struct Renderer {
     globals_group: wgpu::BindGroup,
     object_layout: wgpu::BindGroupLayout,
     objects: Option<(wgpu::Buffer, wgpu::BindGroup, usize)>,
-    targets: BTreeMap<(u32, u32, bool), Targets>,
+    targets: TargetCache,
 }
 
 impl Renderer {
@@ -152,7 +152,7 @@ impl Renderer {
             globals_group,
             object_layout,
             objects: None,
-            targets: BTreeMap::new(),
+            targets: TargetCache::default(),
         })
     }
 
@@ -234,7 +234,9 @@ impl Renderer {
         let (w, h) = (exposure.width_px * s, exposure.height_px * s);
         let visible = self.prepare(scene, exposure)?;
         let samples = self.options.msaa_samples;
-        self.ensure_targets(w, h, false, samples)?;
+        let class = self
+            .targets
+            .ensure(&self.device, &self.info.name, (w, h, false), samples)?;
         let lights = exposure.lights.len();
         if !self.shaded.contains_key(&lights) {
             let build = |entry| {
@@ -254,8 +256,7 @@ impl Renderer {
             };
             self.shaded.insert(lights, shaded);
         }
-        let (Some(targets), Some(shaded)) =
-            (self.targets.get(&(w, h, false)), self.shaded.get(&lights))
+        let (Some(targets), Some(shaded)) = (self.targets.get(class), self.shaded.get(&lights))
         else {
             return Err(RenderError::Gpu("render targets missing".into()));
         };
@@ -268,11 +269,12 @@ impl Renderer {
             scene,
             visible: &visible,
             targets,
+            size: (w, h),
             view,
             resolve,
         };
         self.draw_and_read(&frame, Pipelines::Shaded(shaded), |rgba| {
-            let row = targets.padded_row as usize;
+            let row = padded_row(w) as usize;
             let mut image = RgbImage::new(width, height);
             if s == 1 {
                 let width = width as usize;
@@ -310,19 +312,22 @@ impl Renderer {
     ) -> Result<ImageBuffer<Luma<u32>, Vec<u32>>, RenderError> {
         let (w, h) = (exposure.width_px, exposure.height_px);
         let visible = self.prepare(scene, exposure)?;
-        self.ensure_targets(w, h, true, 1)?;
-        let Some(targets) = self.targets.get(&(w, h, true)) else {
+        let class = self
+            .targets
+            .ensure(&self.device, &self.info.name, (w, h, true), 1)?;
+        let Some(targets) = self.targets.get(class) else {
             return Err(RenderError::Gpu("render targets missing".into()));
         };
         let frame = Frame {
             scene,
             visible: &visible,
             targets,
+            size: (w, h),
             view: &targets.colour_view,
             resolve: None,
         };
         self.draw_and_read(&frame, Pipelines::Ids(&self.ids), |bytes| {
-            let row = targets.padded_row as usize;
+            let row = padded_row(w) as usize;
             let mut ids: ImageBuffer<Luma<u32>, Vec<u32>> = ImageBuffer::new(w, h);
             for (x, y, pixel) in ids.enumerate_pixels_mut() {
                 let i = y as usize * row + x as usize * 4;
@@ -428,23 +433,10 @@ impl Renderer {
         Ok(view.visible(&scene.bounds, &camera_from_object, &scene.draw_order))
     }
 
-    fn ensure_targets(
-        &mut self,
-        w: u32,
-        h: u32,
-        ids: bool,
-        samples: u32,
-    ) -> Result<(), RenderError> {
-        if self.targets.contains_key(&(w, h, ids)) {
-            return Ok(());
-        }
-        // Areas of interest come in many sizes: keep a bounded set of targets.
-        if self.targets.len() >= MAX_TARGET_SIZES {
-            self.targets.clear();
-        }
-        let targets = Targets::new(&self.device, &self.info.name, w, h, ids, samples)?;
-        self.targets.insert((w, h, ids), targets);
-        Ok(())
+    /// How many render targets this renderer has made so far (each size class once while the
+    /// renderer keeps it).
+    pub fn target_allocations(&self) -> u64 {
+        self.targets.allocations()
     }
 
     /// Draws a frame, copies its colour target out and hands the mapped rows (`padded_row`
@@ -459,6 +451,7 @@ impl Renderer {
             return Err(RenderError::Gpu("object uniforms missing".into()));
         };
         let (scene, targets) = (frame.scene, frame.targets);
+        let (w, h) = frame.size;
         let scope = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
         let mut encoder = self
             .device
@@ -494,6 +487,9 @@ impl Renderer {
                 occlusion_query_set: None,
                 multiview_mask: None,
             });
+            // The image fills the target's top-left w x h; the pixels beyond are not read.
+            pass.set_viewport(0.0, 0.0, w as f32, h as f32, 0.0, 1.0);
+            pass.set_scissor_rect(0, 0, w, h);
             pass.set_bind_group(0, &self.globals_group, &[]);
             pass.set_vertex_buffer(0, scene.vertices.slice(..));
             let mut draw = |pipeline: &wgpu::RenderPipeline,
@@ -527,13 +523,13 @@ impl Renderer {
                 buffer: &targets.readback,
                 layout: wgpu::TexelCopyBufferLayout {
                     offset: 0,
-                    bytes_per_row: Some(targets.padded_row),
-                    rows_per_image: Some(targets.height),
+                    bytes_per_row: Some(padded_row(w)),
+                    rows_per_image: Some(h),
                 },
             },
             wgpu::Extent3d {
-                width: targets.width,
-                height: targets.height,
+                width: w,
+                height: h,
                 depth_or_array_layers: 1,
             },
         );
@@ -541,7 +537,9 @@ impl Renderer {
         if let Some(error) = pollster::block_on(scope.pop()) {
             return Err(RenderError::Gpu(error.to_string()));
         }
-        let slice = targets.readback.slice(..);
+        let slice = targets
+            .readback
+            .slice(..u64::from(padded_row(w)) * u64::from(h));
         let (sender, receiver) = std::sync::mpsc::channel();
         slice.map_async(wgpu::MapMode::Read, move |result| {
             let _ = sender.send(result);
@@ -570,6 +568,8 @@ struct Frame<'a> {
     scene: &'a GpuScene,
     visible: &'a [usize],
     targets: &'a Targets,
+    /// The image's size, at most the targets' class.
+    size: (u32, u32),
     view: &'a wgpu::TextureView,
     resolve: Option<&'a wgpu::TextureView>,
 }

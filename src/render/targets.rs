@@ -1,26 +1,96 @@
 //! The render targets a renderer keeps per frame size: MSAA colour and depth, the resolved
 //! colour, and the readback buffer.
 
+use std::collections::BTreeMap;
+
 use super::error::RenderError;
 use super::pipeline::{COLOUR_FORMAT, DEPTH_FORMAT, ID_FORMAT};
 
-/// Render-target sizes a renderer keeps before it drops them all and starts again. Each
-/// area of interest has its own size, and one target with its 4x MSAA colour and depth costs
-/// about 11 MB on a software adapter: a dozen of them per renderer grew a camera batch by some
-/// 0.8 MB a trial, to 480 MB at 200 trials (issue 17). Four hold the frame and the latest
-/// windows; re-creating a target costs far less than rendering into it.
-pub(super) const MAX_TARGET_SIZES: usize = 4;
+/// Render-target size classes a renderer keeps before it drops them all and starts again.
+/// Each area of interest has its own size; a target is made at the size's class (each side
+/// rounded up to [`SIZE_CLASS_PX`]) and a smaller image is drawn into its top-left corner, so
+/// the few classes a camera uses stay allocated for the renderer's life. Before, each size had
+/// a target of its own (about 11 MB with 4x MSAA colour and depth on a software adapter): a
+/// dozen per renderer grew a camera batch by 0.8 MB a trial (issue 17), and a cap of four
+/// exact sizes made and dropped targets all batch long, so resident memory swung by 50 MB.
+pub(super) const MAX_TARGET_SIZES: usize = 8;
 
-/// A frame's render targets and readback buffer at one size.
+/// The step target sides are rounded up to.
+pub(super) const SIZE_CLASS_PX: u32 = 256;
+
+/// The size class holding a `w` x `h` image: each side rounded up to [`SIZE_CLASS_PX`], but
+/// no larger than `limit` (a side over the limit is refused by [`Targets::new`]).
+pub(super) fn size_class(w: u32, h: u32, limit: u32) -> (u32, u32) {
+    let side = |v: u32| {
+        v.div_ceil(SIZE_CLASS_PX)
+            .saturating_mul(SIZE_CLASS_PX)
+            .min(limit)
+            .max(v)
+    };
+    (side(w), side(h))
+}
+
+/// Bytes of one row of a `w`-pixel image in a readback buffer (4 bytes a pixel, rows aligned
+/// as texture copies require).
+pub(super) fn padded_row(w: u32) -> u32 {
+    (w * 4).div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT
+}
+
+/// The targets a renderer keeps, by size class and kind (shaded or ids).
+#[derive(Default)]
+pub(super) struct TargetCache {
+    targets: BTreeMap<(u32, u32, bool), Targets>,
+    allocations: u64,
+}
+
+/// A key of [`TargetCache`]: a size class and whether the targets hold object ids.
+pub(super) type ClassKey = (u32, u32, bool);
+
+impl TargetCache {
+    /// Makes sure targets of the size class holding a `w` x `h` image of the kind `ids` exist
+    /// (`size` is `(w, h, ids)`), with `samples` samples, and returns the class's key.
+    pub(super) fn ensure(
+        &mut self,
+        device: &wgpu::Device,
+        adapter: &str,
+        size: (u32, u32, bool),
+        samples: u32,
+    ) -> Result<ClassKey, RenderError> {
+        let (w, h, ids) = size;
+        let (cw, ch) = size_class(w, h, device.limits().max_texture_dimension_2d);
+        let key = (cw, ch, ids);
+        if self.targets.contains_key(&key) {
+            return Ok(key);
+        }
+        // A bound on the classes, should a caller use very many.
+        if self.targets.len() >= MAX_TARGET_SIZES {
+            self.targets.clear();
+        }
+        let targets = Targets::new(device, adapter, cw, ch, ids, samples)?;
+        self.targets.insert(key, targets);
+        self.allocations += 1;
+        Ok(key)
+    }
+
+    /// The targets of a class [`TargetCache::ensure`] returned.
+    pub(super) fn get(&self, key: ClassKey) -> Option<&Targets> {
+        self.targets.get(&key)
+    }
+
+    /// How many targets have been made.
+    pub(super) fn allocations(&self) -> u64 {
+        self.allocations
+    }
+}
+
+/// A frame's render targets and readback buffer at one size class: a smaller image is drawn
+/// into its top-left corner.
 pub(super) struct Targets {
-    pub(super) width: u32,
-    pub(super) height: u32,
     pub(super) colour_msaa: Option<wgpu::TextureView>,
     pub(super) colour: wgpu::Texture,
     pub(super) colour_view: wgpu::TextureView,
     pub(super) depth: wgpu::TextureView,
     pub(super) readback: wgpu::Buffer,
-    pub(super) padded_row: u32,
 }
 
 impl Targets {
@@ -72,24 +142,19 @@ impl Targets {
         });
         let depth = texture("depth", DEPTH_FORMAT, samples, attachment)
             .create_view(&wgpu::TextureViewDescriptor::default());
-        let padded_row = (w * 4).div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT)
-            * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
         let readback = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("readback"),
-            size: u64::from(padded_row) * u64::from(h),
+            size: u64::from(padded_row(w)) * u64::from(h),
             usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
         let colour_view = colour.create_view(&wgpu::TextureViewDescriptor::default());
         Ok(Self {
-            width: w,
-            height: h,
             colour_msaa,
             colour,
             colour_view,
             depth,
             readback,
-            padded_row,
         })
     }
 }
