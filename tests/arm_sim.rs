@@ -106,3 +106,33 @@ fn arm_reaches_100_random_ik_targets_within_a_millimetre() {
     );
     assert_eq!(report.max_limit_violation_rad, 0.0);
 }
+
+/// The project's URDF with one joint's child link renamed to a link the file lacks (the input
+/// the `urdf` fuzz target found: the physics loader panicked on it) is refused with the file,
+/// the joint and the missing link named.
+#[test]
+fn a_joint_naming_a_missing_link_is_refused_by_name() {
+    let text = match std::fs::read_to_string(urdf()) {
+        Ok(t) => t,
+        Err(e) => panic!("{e}"),
+    };
+    let Some(at) = text.find("<child link=\"") else {
+        panic!("no joint child in the URDF");
+    };
+    let start = at + "<child link=\"".len();
+    let Some(len) = text[start..].find('"') else {
+        panic!("unterminated link name");
+    };
+    let broken = format!("{}no_such_link{}", &text[..start], &text[start + len..]);
+    let path = Path::new("broken/aubo_i5.urdf");
+    let mut world = World::new(WorldParams::default());
+    let error = match SimArm::from_urdf_str(&mut world, &broken, path, Isometry3::identity()) {
+        Ok(_) => panic!("a joint naming a missing link was accepted"),
+        Err(e) => e.to_string(),
+    };
+    assert!(
+        error.contains("broken/aubo_i5.urdf")
+            && error.contains("its child link `no_such_link` is not a link of the file"),
+        "{error}"
+    );
+}

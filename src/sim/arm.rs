@@ -6,6 +6,7 @@ use nalgebra::Isometry3;
 use rapier3d::prelude::*;
 use rapier3d_urdf::{UrdfLoaderOptions, UrdfMultibodyOptions, UrdfRobot};
 
+use super::urdf_graph::tree_error;
 use super::{SimError, Tag, World};
 use crate::kinematics::{DOF, JointVector};
 use crate::math::{pose_from_physics, pose_to_physics};
@@ -114,8 +115,14 @@ impl SimArm {
             ..UrdfLoaderOptions::default()
         };
         let mesh_dir = path.parent().unwrap_or(Path::new("."));
-        let (robot, description) = UrdfRobot::from_str(text, options, mesh_dir)
+        // Parsed and checked here, not by `UrdfRobot::from_str`: its loader panics on a joint
+        // naming a link the file lacks.
+        let description = rapier3d_urdf::urdf_rs::read_from_string(text)
             .map_err(|e| urdf_error(format!("{e:#}")))?;
+        if let Some(reason) = tree_error(&description) {
+            return Err(urdf_error(reason));
+        }
+        let robot = UrdfRobot::from_robot(&description, options, mesh_dir);
         let link_names: Vec<String> = robot
             .links
             .iter()

@@ -8,6 +8,7 @@ mod error;
 mod items;
 mod part;
 mod tag;
+mod urdf_graph;
 mod world;
 
 pub use arm::{ARM_JOINTS, ArmGains, FINGER_JOINTS, FINGER_LINKS, JAW_SPEED_M_S, SimArm};
