@@ -6,7 +6,7 @@ use nalgebra::Isometry3;
 use rapier3d::prelude::*;
 use rapier3d_urdf::{UrdfLoaderOptions, UrdfMultibodyOptions, UrdfRobot};
 
-use super::urdf_graph::tree_error;
+use super::urdf_graph::{tree_error, value_error};
 use super::{SimError, Tag, World};
 use crate::kinematics::{DOF, JointVector};
 use crate::math::{pose_from_physics, pose_to_physics};
@@ -116,10 +116,10 @@ impl SimArm {
         };
         let mesh_dir = path.parent().unwrap_or(Path::new("."));
         // Parsed and checked here, not by `UrdfRobot::from_str`: its loader panics on a joint
-        // naming a link the file lacks.
+        // naming a link the file lacks, and on a cylinder of negative size.
         let description = rapier3d_urdf::urdf_rs::read_from_string(text)
             .map_err(|e| urdf_error(format!("{e:#}")))?;
-        if let Some(reason) = tree_error(&description) {
+        if let Some(reason) = tree_error(&description).or_else(|| value_error(&description)) {
             return Err(urdf_error(reason));
         }
         let robot = UrdfRobot::from_robot(&description, options, mesh_dir);

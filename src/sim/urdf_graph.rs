@@ -1,10 +1,74 @@
-//! Checks a parsed URDF's link tree before the physics loader sees it: the loader indexes its
-//! links by the names the joints give and panics on a name it does not know (found by the
-//! `urdf` fuzz target), so every joint's links must exist, and the links must form a tree.
+//! Checks a parsed URDF before the physics loader sees it. The loader indexes its links by the
+//! names the joints give and panics on a name it does not know, and the shape library asserts
+//! that a cylinder's sizes are positive (both found by the `urdf` fuzz target): so every joint's
+//! links must exist, the links must form a tree, and every number must be one physics can use.
 
 use std::collections::{BTreeMap, BTreeSet};
 
-use rapier3d_urdf::urdf_rs::Robot;
+use rapier3d_urdf::urdf_rs::{Geometry, Pose, Robot};
+
+/// Why a number of `robot` is one the loader cannot use (not finite, or a size, mass or inertia
+/// below zero, or a joint axis of zero length), or `None`.
+pub(super) fn value_error(robot: &Robot) -> Option<String> {
+    let pose = |p: &Pose| p.xyz.iter().chain(p.rpy.iter()).all(|v| v.is_finite());
+    for link in &robot.links {
+        let name = &link.name;
+        let inertial = &link.inertial;
+        let i = &inertial.inertia;
+        let moments = [i.ixx, i.iyy, i.izz];
+        let products = [i.ixy, i.ixz, i.iyz];
+        if !(inertial.mass.value.is_finite() && inertial.mass.value >= 0.0)
+            || !moments.iter().all(|v| v.is_finite() && *v >= 0.0)
+            || !products.iter().all(|v| v.is_finite())
+            || !pose(&inertial.origin)
+        {
+            return Some(format!(
+                "link `{name}`: inertial needs a finite mass and moments of at least 0 and a finite origin"
+            ));
+        }
+        let shapes = link
+            .visual
+            .iter()
+            .map(|v| (&v.geometry, &v.origin, "visual"))
+            .chain(
+                link.collision
+                    .iter()
+                    .map(|c| (&c.geometry, &c.origin, "collision")),
+            );
+        for (geometry, origin, role) in shapes {
+            let sizes: Vec<f64> = match geometry {
+                Geometry::Box { size } => size.to_vec(),
+                Geometry::Cylinder { radius, length } | Geometry::Capsule { radius, length } => {
+                    vec![*radius, *length]
+                }
+                Geometry::Sphere { radius } => vec![*radius],
+                Geometry::Mesh { scale, .. } => scale.as_ref().map_or(vec![1.0], |s| s.to_vec()),
+            };
+            if !sizes.iter().all(|v| v.is_finite() && *v > 0.0) || !pose(origin) {
+                return Some(format!(
+                    "link `{name}`: a {role} shape needs finite sizes above 0 and a finite origin"
+                ));
+            }
+        }
+    }
+    for joint in &robot.joints {
+        let axis = &joint.axis.xyz;
+        let limit = &joint.limit;
+        if !pose(&joint.origin)
+            || !axis.iter().all(|v| v.is_finite())
+            || axis.iter().all(|v| *v == 0.0)
+            || ![limit.lower, limit.upper, limit.effort, limit.velocity]
+                .iter()
+                .all(|v| v.is_finite())
+        {
+            return Some(format!(
+                "joint `{}`: needs a finite origin and limits and an axis of non-zero length",
+                joint.name
+            ));
+        }
+    }
+    None
+}
 
 /// Why `robot`'s links and joints do not form a tree the loader can build, or `None`.
 pub(super) fn tree_error(robot: &Robot) -> Option<String> {
@@ -68,6 +132,36 @@ mod tests {
         match urdf_rs::read_from_string(&text) {
             Ok(r) => r,
             Err(e) => panic!("{e}"),
+        }
+    }
+
+    #[test]
+    fn shapes_with_sizes_at_or_below_zero_or_not_finite_are_named() {
+        let with_shape = |shape: &str| {
+            let text = format!(
+                "<robot name=\"r\"><link name=\"a\"><collision><geometry>{shape}</geometry>\
+                 </collision></link></robot>"
+            );
+            match urdf_rs::read_from_string(&text) {
+                Ok(r) => r,
+                Err(e) => panic!("{e}"),
+            }
+        };
+        assert_eq!(
+            value_error(&with_shape("<cylinder radius=\"0.1\" length=\"0.2\"/>")),
+            None
+        );
+        for bad in [
+            "<cylinder radius=\"0.1\" length=\"-0.2\"/>",
+            "<cylinder radius=\"-0.0\" length=\"0.2\"/>",
+            "<sphere radius=\"NaN\"/>",
+            "<box size=\"1 inf 1\"/>",
+            "<capsule radius=\"0\" length=\"1\"/>",
+        ] {
+            let Some(error) = value_error(&with_shape(bad)) else {
+                panic!("{bad} accepted");
+            };
+            assert!(error.starts_with("link `a`: a collision shape"), "{error}");
         }
     }
 
