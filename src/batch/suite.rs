@@ -88,13 +88,20 @@ impl BatchRow {
             .cycle_time_s
             .as_ref()
             .map_or("-".to_owned(), |c| format!("{:.2}", c.mean));
+        // The gate as ">=0.85" and its verdict; "-" without one.
         let verdict = match (&self.gate, self.interrupted) {
-            (_, true) => "INTERRUPTED",
-            (Some(g), false) if !g.passed => "FAIL",
-            _ => "",
+            (_, true) => "INTERRUPTED".to_owned(),
+            (Some(g), false) => {
+                format!(
+                    ">={} {}",
+                    g.min_success,
+                    if g.passed { "ok" } else { "FAIL" }
+                )
+            }
+            (None, false) => "-".to_owned(),
         };
         format!(
-            "{label:<34} {:>4}/{:<4} {:>6.3} [{:.3}, {:.3}] {:>6} {verdict:<5} {}",
+            "{label:<34} {:>4}/{:<4} {:>6.3} [{:.3}, {:.3}] {:>6} {verdict:<10} {}",
             self.successes,
             self.trials,
             self.success_rate,
@@ -109,7 +116,7 @@ impl BatchRow {
 /// The header of [`BatchRow::table_line`]'s table.
 pub(super) fn table_header(label: &str) -> String {
     format!(
-        "{label:<34} {:>9} {:>6} {:<16} {:>6} {:<5} failures",
+        "{label:<34} {:>9} {:>6} {:<16} {:>6} {:<10} failures",
         "success", "rate", "wilson95", "cycle", "gate"
     )
 }
@@ -239,6 +246,13 @@ mod tests {
         assert_eq!(suite.exit_code(), 1);
         let table = suite.summary_table();
         assert_eq!(table.lines().count(), 4, "{table}");
-        assert!(table.contains("FAIL"), "{table}");
+        assert!(table.contains(">=0.9 FAIL"), "{table}");
+        assert!(table.contains(">=0.9 ok"), "{table}");
+        let ungated = BatchRow::from_report(&report(5, 0, None), "c");
+        assert!(
+            ungated.table_line("c").contains(" - "),
+            "{}",
+            ungated.table_line("c")
+        );
     }
 }
