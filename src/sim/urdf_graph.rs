@@ -17,11 +17,12 @@ pub(super) fn value_error(robot: &Robot) -> Option<String> {
         let i = &inertial.inertia;
         let moments = [i.ixx, i.iyy, i.izz];
         let products = [i.ixy, i.ixz, i.iyz];
-        if !(inertial.mass.value.is_finite() && inertial.mass.value >= 0.0)
-            || !moments.iter().all(|v| v.is_finite() && *v >= 0.0)
-            || !products.iter().all(|v| v.is_finite())
-            || !pose(&inertial.origin)
-        {
+        let usable = inertial.mass.value.is_finite()
+            && inertial.mass.value >= 0.0
+            && moments.iter().all(|v| v.is_finite() && *v >= 0.0)
+            && products.iter().all(|v| v.is_finite())
+            && pose(&inertial.origin);
+        if !usable {
             return Some(format!(
                 "link `{name}`: inertial needs a finite mass and moments of at least 0 and a finite origin"
             ));
