@@ -13,13 +13,12 @@ use std::time::Instant;
 
 use anyhow::{Context, Result};
 use clap::Args;
-use nalgebra::Isometry3;
 use serde::Serialize;
-use twincell::camera::CameraCalibration;
 use twincell::render::{CameraRig, ObjectTruth, Renderer, RendererOptions, Shot, dataset};
 use twincell::scenario::Scenario;
 
 use super::BadInput;
+use super::camera_json::CameraJson;
 
 /// Arguments of `twincell render`.
 #[derive(Debug, Args)]
@@ -51,37 +50,6 @@ pub struct DatasetArgs {
     /// Image width and height in pixels, overriding the scenario's `camera.resolution_px`.
     #[arg(long, value_names = ["W", "H"], num_args = 2)]
     resolution: Option<Vec<u32>>,
-}
-
-#[derive(Debug, Serialize)]
-struct CameraJson {
-    width_px: u32,
-    height_px: u32,
-    fx_px: f64,
-    fy_px: f64,
-    cx_px: f64,
-    cy_px: f64,
-    /// Row-major 4x4 pose of the camera in the world (x right, y down, z forward).
-    world_from_camera: [[f64; 4]; 4],
-}
-
-impl CameraJson {
-    fn new(c: &CameraCalibration, width_px: u32, height_px: u32) -> Self {
-        Self {
-            width_px,
-            height_px,
-            fx_px: c.fx_px,
-            fy_px: c.fy_px,
-            cx_px: c.cx_px,
-            cy_px: c.cy_px,
-            world_from_camera: matrix(&c.world_from_camera),
-        }
-    }
-}
-
-fn matrix(pose: &Isometry3<f64>) -> [[f64; 4]; 4] {
-    let m = pose.to_homogeneous();
-    std::array::from_fn(|r| std::array::from_fn(|c| m[(r, c)]))
 }
 
 #[derive(Debug, Serialize)]

@@ -1,6 +1,6 @@
 //! Millimetres and conformity verdicts for `twincell measure` (see the parent module).
 
-use serde::{Deserialize, Serialize};
+use serde::Serialize;
 use std::path::Path;
 use twincell::perception::calibration::CameraCalibration;
 use twincell::perception::calibration::MeasureOnPlane;
@@ -8,6 +8,7 @@ use twincell::perception::roundness::DEFAULT_MAX_UPR;
 
 use super::{CircleOut, MeasureArgs};
 use crate::cli::BadInput;
+use crate::cli::camera_json::CameraJson;
 
 /// A circle in millimetres and its verdict.
 #[derive(Debug, Serialize)]
@@ -94,19 +95,6 @@ pub(super) fn scale_of(args: &MeasureArgs) -> anyhow::Result<Option<Scale>> {
     )))
 }
 
-/// The camera object of `twincell render`'s JSON.
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct CameraFile {
-    width_px: u32,
-    height_px: u32,
-    fx_px: f64,
-    fy_px: f64,
-    cx_px: f64,
-    cy_px: f64,
-    world_from_camera: [[f64; 4]; 4],
-}
-
 /// Reads a camera JSON: `shot.json` (its `calibration` object) or the object alone.
 fn load_calibration(path: &Path) -> anyhow::Result<(CameraCalibration, u32, u32)> {
     let shown = path.display();
@@ -118,40 +106,11 @@ fn load_calibration(path: &Path) -> anyhow::Result<(CameraCalibration, u32, u32)
         Some(inner) => ("calibration", inner.clone()),
         None => ("(top level)", value),
     };
-    let camera: CameraFile = serde_json::from_value(object)
+    let camera: CameraJson = serde_json::from_value(object)
         .map_err(|e| BadInput(format!("{shown}: key `{key}`: {e}")))?;
-    for (field, v) in [("fx_px", camera.fx_px), ("fy_px", camera.fy_px)] {
-        if !(v.is_finite() && v > 0.0) {
-            return Err(BadInput(format!("{shown}: key `{key}.{field}`: {v} is not > 0")).into());
-        }
-    }
-    let m = camera.world_from_camera;
-    let rotation = nalgebra::Matrix3::new(
-        m[0][0], m[0][1], m[0][2], m[1][0], m[1][1], m[1][2], m[2][0], m[2][1], m[2][2],
-    );
-    if (rotation.transpose() * rotation - nalgebra::Matrix3::identity()).norm() > 1e-6
-        || m[3] != [0.0, 0.0, 0.0, 1.0]
-    {
-        return Err(BadInput(format!(
-            "{shown}: key `{key}.world_from_camera`: not a rigid transform (rotation and \
-             translation, last row 0 0 0 1)"
-        ))
-        .into());
-    }
-    let rotation = nalgebra::UnitQuaternion::from_rotation_matrix(
-        &nalgebra::Rotation3::from_matrix_unchecked(rotation),
-    );
-    let calibration = CameraCalibration {
-        fx_px: camera.fx_px,
-        fy_px: camera.fy_px,
-        cx_px: camera.cx_px,
-        cy_px: camera.cy_px,
-        world_from_camera: nalgebra::Isometry3::from_parts(
-            nalgebra::Translation3::new(m[0][3], m[1][3], m[2][3]),
-            rotation,
-        ),
-        end_face_height_m: 0.0,
-    };
+    let calibration = camera
+        .calibration()
+        .map_err(|(field, why)| BadInput(format!("{shown}: key `{key}.{field}`: {why}")))?;
     Ok((calibration, camera.width_px, camera.height_px))
 }
 
