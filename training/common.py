@@ -93,10 +93,47 @@ def letterbox(image, width, height, pad, label):
     return canvas, Letterbox(nw / w, ox, oy, w, h)
 
 
-def read_split(data_dir, split, width, height, pad=PAD_VALUE):
+def union_names(data_dirs):
+    """The classes of several datasets (each rendered from its own part catalogue): every part
+    type in order of first appearance, then `bottle` last. Types of the same name are one class."""
+    parts = []
+    for d in data_dirs:
+        for name in read_names(d):
+            if name != "bottle" and name not in parts:
+                parts.append(name)
+    return parts + ["bottle"]
+
+
+def class_map(data_dir, names):
+    """Maps a dataset's own class ids to their index in `names` (every class must be there)."""
+    own = read_names(data_dir)
+    missing = [n for n in own if n not in names]
+    if missing:
+        raise ValueError(f"{data_dir}/data.yaml: classes {missing} are not among {names}")
+    return [names.index(n) for n in own]
+
+
+def project_path(path):
+    """`path` as a model card records it: relative to the project root when inside it, as
+    `$DATA/...` when inside the directory in the environment's DATA (training/retrain.sh sets
+    it), else unchanged."""
+    full = os.path.realpath(path)
+    root = os.path.realpath(os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
+    data = os.environ.get("DATA")
+    if full == root or full.startswith(root + os.sep):
+        return os.path.relpath(full, root)
+    if data:
+        data = os.path.realpath(data)
+        if full.startswith(data + os.sep):
+            return "$DATA/" + os.path.relpath(full, data)
+    return path
+
+
+def read_split(data_dir, split, width, height, pad=PAD_VALUE, classes=None):
     """One split of a dataset directory, letterboxed to the network's width x height:
     (uint8 inputs [N, height, width, 3], boxes per image as float arrays [k, 5] of class, x0, y0,
-    x1, y1 in image pixels, the `Letterbox` per image, file paths)."""
+    x1, y1 in image pixels, the `Letterbox` per image, file paths). With `classes` (a list from
+    `class_map`), class ids are mapped through it."""
     image_dir = os.path.join(data_dir, "images", split)
     label_dir = os.path.join(data_dir, "labels", split)
     stems = sorted(f[:-4] for f in os.listdir(image_dir) if f.endswith(".png"))
@@ -112,6 +149,8 @@ def read_split(data_dir, split, width, height, pad=PAD_VALUE):
                 if len(parts) != 5:
                     raise ValueError(f"{label_dir}/{stem}.txt line {n}: expected 5 fields")
                 c, cx, cy, bw, bh = int(parts[0]), *map(float, parts[1:])
+                if classes is not None:
+                    c = classes[c]
                 rows.append(
                     [c, (cx - bw / 2) * w, (cy - bh / 2) * h, (cx + bw / 2) * w, (cy + bh / 2) * h]
                 )
@@ -259,7 +298,8 @@ def evaluate(detections, targets, names, operating_threshold, iou_match=0.5):
             j = int(ious.argmax())
             if ious[j] >= iou_match and int(truth[j, 0]) == bottle:
                 bottle_as_part += 1
-    m = float(np.mean([v["ap50"] for v in per_class.values()]))
+    # Over the classes the sets hold: a set from one part catalogue leaves the other's out.
+    m = float(np.mean([v["ap50"] for v in per_class.values() if v["truths"]]))
     return {"map50": m, "per_class": per_class, "bottle_as_part": bottle_as_part}
 
 

@@ -11,7 +11,9 @@ set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
 root="$(dirname "$here")"
 models="${1:-$root/assets/models}"
-data="${DATA:-$HOME/.cache/twincell/detdata}"
+# The card records data paths as $DATA/SET (training/common.py, project_path).
+export DATA="${DATA:-$HOME/.cache/twincell/detdata}"
+data="$DATA"
 venv="${TWINCELL_VENV:-$HOME/.cache/twincell/venv}"
 "$here/setup.sh"
 "$here/make_data.sh" "$data" all
@@ -22,7 +24,9 @@ py="$venv/bin/python"
 export OMP_NUM_THREADS=1 OMP_WAIT_POLICY=passive
 cd "$here"
 nice -n 10 "$py" train.py --data "$data/train_731" "$data/train_7311_harsh" \
+    "$data/train_b_7321" "$data/train_b_7322_harsh" \
     --out "$models/detector.pt" --epochs 12 --batch 16 --lr 3e-3 --input 320 256 --seed 6 \
     --threads 1 --eval-every 4
 "$py" export.py --weights "$models/detector.pt" --out "$models/detector.onnx"
-"$py" evaluate.py --model "$models/detector.onnx" --data "$data/heldout_9001" "$data/heldout_9002_harsh"
+"$py" evaluate.py --model "$models/detector.onnx" --data "$data/heldout_9001" "$data/heldout_9002_harsh" \
+    "$data/heldout_b_9011" "$data/heldout_b_9012_harsh"

@@ -143,23 +143,22 @@ def main(argv):
     args = parse_args(argv)
     common.seed_everything(args.seed, args.threads)
     rng = np.random.default_rng(args.seed)
-    names = common.read_names(args.data[0])
-    for d in args.data[1:]:
-        if common.read_names(d) != names:
-            raise ValueError(f"{d}/data.yaml: class names differ from {args.data[0]}")
+    # Sets rendered from different part catalogues train one detector over all their types.
+    names = common.union_names(args.data)
     width, height = args.input
     if width % STRIDES[-1] or height % STRIDES[-1]:
         raise ValueError(f"--input {width} {height}: each side must divide by {STRIDES[-1]}")
     train_images, train_targets, val_images, val_targets, val_frames, files = [], [], [], [], [], []
     for d in args.data:
-        imgs, tgts, frames, paths = common.read_split(d, "train", width, height)
+        classes = common.class_map(d, names)
+        imgs, tgts, frames, paths = common.read_split(d, "train", width, height, classes=classes)
         train_images.append(imgs)
         # Training targets live in input pixels.
         train_targets += [
             np.concatenate((t[:, :1], f.to_input(t[:, 1:])), 1) for t, f in zip(tgts, frames)
         ]
         files += paths
-        imgs, tgts, frames, _ = common.read_split(d, "val", width, height)
+        imgs, tgts, frames, _ = common.read_split(d, "val", width, height, classes=classes)
         val_images.append(imgs)
         val_targets += tgts
         val_frames += frames
@@ -219,6 +218,14 @@ def main(argv):
         history.append(row)
         print(" ".join(f"{k}={v:.4f}" if isinstance(v, float) else f"{k}={v}" for k, v in row.items()), flush=True)
 
+    # The record names paths relative to the project (or to $DATA), never this machine's.
+    command, path_args = [], False
+    for a in argv:
+        if a.startswith("--"):
+            path_args = a in ("--data", "--out")
+            command.append(a)
+        else:
+            command.append(common.project_path(a) if path_args else a)
     torch.save(
         {"state_dict": net.state_dict(), "names": names, "input": [width, height]}, args.out
     )
@@ -226,9 +233,9 @@ def main(argv):
     common.write_json(
         os.path.splitext(args.out)[0] + ".train.json",
         {
-            "command": [os.path.basename(sys.executable), "training/train.py", *argv],
+            "command": ["python", "training/train.py", *command],
             "data": {
-                "dirs": args.data,
+                "dirs": [common.project_path(d) for d in args.data],
                 "train_images": len(train_images),
                 "val_images": len(val_images),
                 "train_digest_sha256": common.digest(files),
