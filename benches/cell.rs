@@ -1,5 +1,12 @@
 //! Cell physics timings (`cargo bench --bench cell`): one step of the world with the arm, the
 //! belt and ten parts, and one whole oracle trial of `paper_50`.
+//!
+//! The step is measured three ways in the same run, so that a change of the solver schedule
+//! is compared on one machine under one load: `physics_step_arm_ten_parts` with the world's
+//! defaults (nothing is near the arm, so the free substeps), `..._free_4_substeps` with the
+//! schedule before issue 15's cut (4 free substeps, predicted contacts counted), and
+//! `..._8_substeps` with the scenario's 8 substeps every step (the schedule before that). The
+//! physics real-time factor per core is (1/240 s) / (time per step).
 
 use std::hint::black_box;
 use std::path::Path;
@@ -21,13 +28,13 @@ fn scenario() -> Scenario {
     }
 }
 
-fn cell_benches(c: &mut Criterion) {
-    let scenario = scenario();
+/// The cell with the arm at home and nine more tubes on the belt, spaced along it (ten parts
+/// in all), the belt running.
+fn loaded_cell(scenario: &Scenario) -> Cell {
     let mut rng = SimRng::new(1);
-    let Ok(mut cell) = Cell::build(&scenario, None, &mut rng) else {
+    let Ok(mut cell) = Cell::build(scenario, None, &mut rng) else {
         panic!("cell builds")
     };
-    // Nine more tubes on the belt, spaced along it: ten parts in all.
     let physics = &mut cell.world.physics;
     for i in 0..9 {
         let x = -0.7 + 0.09 * f64::from(i);
@@ -45,14 +52,38 @@ fn cell_benches(c: &mut Criterion) {
         );
     }
     cell.conveyor.set_speed_m_s(0.05);
+    cell
+}
+
+fn cell_benches(c: &mut Criterion) {
+    let scenario = scenario();
+    let full = scenario.physics.solver_iterations;
     let mut group = c.benchmark_group("cell");
     group.measurement_time(Duration::from_secs(5));
-    group.bench_function("physics_step_arm_ten_parts", |b| {
-        b.iter(|| {
-            cell.world.step_with_hooks(&cell.conveyor);
-            black_box(cell.world.time_s())
-        })
-    });
+    // (name, solver schedule: None for the world's defaults).
+    let schedules = [
+        ("physics_step_arm_ten_parts", None),
+        (
+            "physics_step_arm_ten_parts_free_4_substeps",
+            Some((4, f64::INFINITY)),
+        ),
+        (
+            "physics_step_arm_ten_parts_8_substeps",
+            Some((full, f64::INFINITY)),
+        ),
+    ];
+    for (name, schedule) in schedules {
+        let mut cell = loaded_cell(&scenario);
+        if let Some((free, margin)) = schedule {
+            cell.world.set_solver_schedule(full, free, margin);
+        }
+        group.bench_function(name, |b| {
+            b.iter(|| {
+                cell.world.step_with_hooks(&cell.conveyor);
+                black_box(cell.world.time_s())
+            })
+        });
+    }
     let runner = match CellTrialRunner::new(
         scenario.clone(),
         Path::new("paper_50.toml"),
