@@ -8,7 +8,7 @@
 //! process (every thread: on a software adapter the rasteriser's threads do most of the work),
 //! which a machine shared with other jobs inflates far less than wall time. `render_cpu` also
 //! breaks a frame down: an empty frame (clear, MSAA resolve, readback) and the frame without
-//! MSAA.
+//! MSAA, and measures the sensor effects (fast and reference) by CPU time as well.
 
 use std::hint::black_box;
 use std::path::Path;
@@ -174,6 +174,25 @@ fn cpu_benches(c: &mut Criterion<ProcessCpuTime>) {
         let gpu = plain.upload(&shot.scene);
         group.bench_function(format!("render_readback_no_msaa_{w}x{h}"), |b| {
             b.iter(|| black_box(frame(&mut plain, &gpu, &shot.exposure)))
+        });
+        // The sensor model runs on the calling thread only: its CPU time is its cost with
+        // little of the inflation that other jobs on the machine add to wall time.
+        let gpu = msaa.upload(&shot.scene);
+        let clean = frame(&mut msaa, &gpu, &shot.exposure);
+        group.bench_function(format!("sensor_effects_{w}x{h}"), |b| {
+            b.iter(|| {
+                let mut image = clean.clone();
+                shot.sensor.apply(&mut image);
+                black_box(image)
+            })
+        });
+        group.bench_function(format!("sensor_effects_reference_{w}x{h}"), |b| {
+            b.iter(|| {
+                let mut image = clean.clone();
+                shot.sensor
+                    .apply_window_reference(&mut image, (0, 0), (w, h));
+                black_box(image)
+            })
         });
     }
     group.finish();
