@@ -7,18 +7,26 @@
 //! schedule before issue 15's cut (4 free substeps, predicted contacts counted), and
 //! `..._8_substeps` with the scenario's 8 substeps every step (the schedule before that). The
 //! physics real-time factor per core is (1/240 s) / (time per step).
+//!
+//! Group `cell` measures wall-clock time; group `cell_cpu` measures the same three steps by the
+//! process's CPU time, which a machine shared with other jobs inflates far less.
 
 use std::hint::black_box;
 use std::path::Path;
 use std::time::Duration;
 
-use criterion::{Criterion, criterion_group, criterion_main};
+use criterion::measurement::Measurement;
+use criterion::{BenchmarkGroup, Criterion, SamplingMode, criterion_group, criterion_main};
 use rapier3d::prelude::*;
 use twincell::batch::{Perception, TrialRunner, trial_seed};
 use twincell::cell::Cell;
 use twincell::rng::SimRng;
 use twincell::scenario::Scenario;
 use twincell::task::CellTrialRunner;
+
+#[path = "common/cpu_time.rs"]
+mod cpu_time;
+use cpu_time::ProcessCpuTime;
 
 fn scenario() -> Scenario {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/paper_50.toml");
@@ -55,12 +63,11 @@ fn loaded_cell(scenario: &Scenario) -> Cell {
     cell
 }
 
-fn cell_benches(c: &mut Criterion) {
-    let scenario = scenario();
+/// One step of the loaded cell under each solver schedule: the world's defaults, the schedule
+/// before issue 15's cut (4 free substeps, predicted contacts counted) and the scenario's
+/// count every step.
+fn step_benches<M: Measurement>(group: &mut BenchmarkGroup<'_, M>, scenario: &Scenario) {
     let full = scenario.physics.solver_iterations;
-    let mut group = c.benchmark_group("cell");
-    group.measurement_time(Duration::from_secs(5));
-    // (name, solver schedule: None for the world's defaults).
     let schedules = [
         ("physics_step_arm_ten_parts", None),
         (
@@ -73,7 +80,7 @@ fn cell_benches(c: &mut Criterion) {
         ),
     ];
     for (name, schedule) in schedules {
-        let mut cell = loaded_cell(&scenario);
+        let mut cell = loaded_cell(scenario);
         if let Some((free, margin)) = schedule {
             cell.world.set_solver_schedule(full, free, margin);
         }
@@ -84,6 +91,13 @@ fn cell_benches(c: &mut Criterion) {
             })
         });
     }
+}
+
+fn cell_benches(c: &mut Criterion) {
+    let scenario = scenario();
+    let mut group = c.benchmark_group("cell");
+    group.measurement_time(Duration::from_secs(5));
+    step_benches(&mut group, &scenario);
     let runner = match CellTrialRunner::new(
         scenario.clone(),
         Path::new("paper_50.toml"),
@@ -103,5 +117,21 @@ fn cell_benches(c: &mut Criterion) {
     group.finish();
 }
 
+fn cpu_benches(c: &mut Criterion<ProcessCpuTime>) {
+    let scenario = scenario();
+    let mut group = c.benchmark_group("cell_cpu");
+    group.measurement_time(Duration::from_secs(5));
+    // Linux updates a running thread's CPU time at scheduler ticks (4 ms): equal samples of
+    // many steps each, rather than criterion's ramp from one step up.
+    group.sampling_mode(SamplingMode::Flat);
+    step_benches(&mut group, &scenario);
+    group.finish();
+}
+
 criterion_group!(benches, cell_benches);
-criterion_main!(benches);
+criterion_group! {
+    name = cpu;
+    config = Criterion::default().with_measurement(ProcessCpuTime);
+    targets = cpu_benches
+}
+criterion_main!(benches, cpu);
