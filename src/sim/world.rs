@@ -188,3 +188,87 @@ impl World {
         self.step_with_hooks(&());
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use nalgebra::{Isometry3, Point3};
+    use rapier3d::prelude::*;
+
+    use super::*;
+    use crate::math::vector_to_physics;
+    use crate::sim::{FINGER_LINKS, SimArm};
+
+    /// A weightless world with the arm at rest and a ball `gap_m` beyond the left finger's tip,
+    /// after one step (which finds the contacts the next step reads).
+    fn ball_beyond_finger(gap_m: f64, fixed: bool) -> World {
+        let params = WorldParams {
+            gravity_m_s2: 0.0,
+            ..WorldParams::default()
+        };
+        let mut world = World::new(params);
+        let arm = match SimArm::load_builtin(&mut world, Isometry3::translation(0.0, 0.0, 0.6)) {
+            Ok(arm) => arm,
+            Err(e) => panic!("{e}"),
+        };
+        arm.reset_to(&mut world, &[0.3, 0.2, 1.4, 0.0, 1.5, 0.0], 0.03);
+        arm.dress_colliders(&mut world, 1.0);
+        let Some((_, finger)) = arm.link_bodies().iter().find(|(n, _)| n == FINGER_LINKS[0]) else {
+            panic!("no left finger")
+        };
+        let Some(finger_pose) = world.physics.bodies.get(*finger).map(|b| *b.position()) else {
+            panic!("no finger body")
+        };
+        // The pad is a 12 x 30 x 90 mm box centred 95 mm out along the finger's z: its tip is
+        // at 140 mm. The ball (radius 5 mm) sits on that axis, `gap_m` past the tip.
+        let radius = 0.005;
+        let local = Point3::new(0.006, 0.0, 0.14 + gap_m + radius);
+        let centre = crate::math::pose_from_physics(&finger_pose) * local;
+        let builder = if fixed {
+            RigidBodyBuilder::fixed()
+        } else {
+            RigidBodyBuilder::dynamic()
+        };
+        let physics = &mut world.physics;
+        let ball = physics
+            .bodies
+            .insert(builder.translation(vector_to_physics(&centre.coords)));
+        physics.colliders.insert_with_parent(
+            ColliderBuilder::ball(radius as f32),
+            ball,
+            &mut physics.bodies,
+        );
+        world.step();
+        world
+    }
+
+    #[test]
+    fn the_full_count_comes_back_within_the_margin_of_a_moving_body_only() {
+        let full = WorldParams::default().solver_iterations;
+        assert!(full > FREE_SOLVER_ITERATIONS);
+        // Far away, and inside rapier's 2 cm prediction but outside the 1 cm margin: free.
+        for gap in [0.10, 0.015] {
+            let world = ball_beyond_finger(gap, false);
+            assert_eq!(
+                world.next_solver_iterations(),
+                FREE_SOLVER_ITERATIONS,
+                "{gap} m"
+            );
+        }
+        // Within the margin of a body that can move: the full count.
+        for gap in [0.006, 0.002, 0.0] {
+            let world = ball_beyond_finger(gap, false);
+            assert_eq!(world.next_solver_iterations(), full, "{gap} m");
+        }
+        // A fixed body within the margin does not count.
+        assert_eq!(
+            ball_beyond_finger(0.002, true).next_solver_iterations(),
+            FREE_SOLVER_ITERATIONS
+        );
+        // The schedule can be set: the previous one counted every predicted contact.
+        let mut world = ball_beyond_finger(0.015, false);
+        world.set_solver_schedule(full, 4, f64::INFINITY);
+        assert_eq!(world.next_solver_iterations(), full);
+        world.set_solver_schedule(full, 4, 0.01);
+        assert_eq!(world.next_solver_iterations(), 4);
+    }
+}
