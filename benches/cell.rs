@@ -1,17 +1,32 @@
 //! Cell physics timings (`cargo bench --bench cell`): one step of the world with the arm, the
 //! belt and ten parts, and one whole oracle trial of `paper_50`.
+//!
+//! The step is measured three ways in the same run, so that a change of the solver schedule
+//! is compared on one machine under one load: `physics_step_arm_ten_parts` with the world's
+//! defaults (nothing is near the arm, so the free substeps), `..._free_4_substeps` with the
+//! schedule before issue 15's cut (4 free substeps, predicted contacts counted), and
+//! `..._8_substeps` with the scenario's 8 substeps every step (the schedule before that). The
+//! physics real-time factor per core is (1/240 s) / (time per step).
+//!
+//! Group `cell` measures wall-clock time; group `cell_cpu` measures the same three steps by the
+//! process's CPU time, which a machine shared with other jobs inflates far less.
 
 use std::hint::black_box;
 use std::path::Path;
 use std::time::Duration;
 
-use criterion::{Criterion, criterion_group, criterion_main};
+use criterion::measurement::Measurement;
+use criterion::{BenchmarkGroup, Criterion, SamplingMode, criterion_group, criterion_main};
 use rapier3d::prelude::*;
 use twincell::batch::{Perception, TrialRunner, trial_seed};
 use twincell::cell::Cell;
 use twincell::rng::SimRng;
 use twincell::scenario::Scenario;
 use twincell::task::CellTrialRunner;
+
+#[path = "common/cpu_time.rs"]
+mod cpu_time;
+use cpu_time::ProcessCpuTime;
 
 fn scenario() -> Scenario {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/paper_50.toml");
@@ -21,13 +36,13 @@ fn scenario() -> Scenario {
     }
 }
 
-fn cell_benches(c: &mut Criterion) {
-    let scenario = scenario();
+/// The cell with the arm at home and nine more tubes on the belt, spaced along it (ten parts
+/// in all), the belt running.
+fn loaded_cell(scenario: &Scenario) -> Cell {
     let mut rng = SimRng::new(1);
-    let Ok(mut cell) = Cell::build(&scenario, None, &mut rng) else {
+    let Ok(mut cell) = Cell::build(scenario, None, &mut rng) else {
         panic!("cell builds")
     };
-    // Nine more tubes on the belt, spaced along it: ten parts in all.
     let physics = &mut cell.world.physics;
     for i in 0..9 {
         let x = -0.7 + 0.09 * f64::from(i);
@@ -45,14 +60,44 @@ fn cell_benches(c: &mut Criterion) {
         );
     }
     cell.conveyor.set_speed_m_s(0.05);
+    cell
+}
+
+/// One step of the loaded cell under each solver schedule: the world's defaults, the schedule
+/// before issue 15's cut (4 free substeps, predicted contacts counted) and the scenario's
+/// count every step.
+fn step_benches<M: Measurement>(group: &mut BenchmarkGroup<'_, M>, scenario: &Scenario) {
+    let full = scenario.physics.solver_iterations;
+    let schedules = [
+        ("physics_step_arm_ten_parts", None),
+        (
+            "physics_step_arm_ten_parts_free_4_substeps",
+            Some((4, f64::INFINITY)),
+        ),
+        (
+            "physics_step_arm_ten_parts_8_substeps",
+            Some((full, f64::INFINITY)),
+        ),
+    ];
+    for (name, schedule) in schedules {
+        let mut cell = loaded_cell(scenario);
+        if let Some((free, margin)) = schedule {
+            cell.world.set_solver_schedule(full, free, margin);
+        }
+        group.bench_function(name, |b| {
+            b.iter(|| {
+                cell.world.step_with_hooks(&cell.conveyor);
+                black_box(cell.world.time_s())
+            })
+        });
+    }
+}
+
+fn cell_benches(c: &mut Criterion) {
+    let scenario = scenario();
     let mut group = c.benchmark_group("cell");
     group.measurement_time(Duration::from_secs(5));
-    group.bench_function("physics_step_arm_ten_parts", |b| {
-        b.iter(|| {
-            cell.world.step_with_hooks(&cell.conveyor);
-            black_box(cell.world.time_s())
-        })
-    });
+    step_benches(&mut group, &scenario);
     let runner = match CellTrialRunner::new(
         scenario.clone(),
         Path::new("paper_50.toml"),
@@ -72,5 +117,21 @@ fn cell_benches(c: &mut Criterion) {
     group.finish();
 }
 
+fn cpu_benches(c: &mut Criterion<ProcessCpuTime>) {
+    let scenario = scenario();
+    let mut group = c.benchmark_group("cell_cpu");
+    group.measurement_time(Duration::from_secs(5));
+    // Linux updates a running thread's CPU time at scheduler ticks (4 ms): equal samples of
+    // many steps each, rather than criterion's ramp from one step up.
+    group.sampling_mode(SamplingMode::Flat);
+    step_benches(&mut group, &scenario);
+    group.finish();
+}
+
 criterion_group!(benches, cell_benches);
-criterion_main!(benches);
+criterion_group! {
+    name = cpu;
+    config = Criterion::default().with_measurement(ProcessCpuTime);
+    targets = cpu_benches
+}
+criterion_main!(benches, cpu);

@@ -8,17 +8,20 @@
 //! process (every thread: on a software adapter the rasteriser's threads do most of the work),
 //! which a machine shared with other jobs inflates far less than wall time. `render_cpu` also
 //! breaks a frame down: an empty frame (clear, MSAA resolve, readback) and the frame without
-//! MSAA.
+//! MSAA, and measures the sensor effects (fast and reference) by CPU time as well.
 
 use std::hint::black_box;
 use std::path::Path;
 use std::time::Duration;
 
-use criterion::measurement::{Measurement, ValueFormatter, WallTime};
 use criterion::{Criterion, criterion_group, criterion_main};
 use image::RgbImage;
 use twincell::render::{CameraRig, Exposure, GpuScene, Renderer, RendererOptions, Scene, Shot};
 use twincell::scenario::Scenario;
+
+#[path = "common/cpu_time.rs"]
+mod cpu_time;
+use cpu_time::ProcessCpuTime;
 
 const RESOLUTIONS: [(u32, u32); 2] = [(640, 480), (1280, 960)];
 
@@ -112,48 +115,6 @@ fn render_benches(c: &mut Criterion) {
     group.finish();
 }
 
-/// CPU time of the whole process (all its threads), from Linux's per-thread scheduler
-/// statistics, in nanoseconds.
-struct ProcessCpuTime;
-
-fn process_cpu_ns() -> u64 {
-    let tasks = match std::fs::read_dir("/proc/self/task") {
-        Ok(tasks) => tasks,
-        Err(e) => panic!("the CPU-time bench needs Linux: /proc/self/task: {e}"),
-    };
-    tasks
-        .flatten()
-        .filter_map(|task| std::fs::read_to_string(task.path().join("schedstat")).ok())
-        .filter_map(|stat| stat.split(' ').next()?.parse::<u64>().ok())
-        .sum()
-}
-
-impl Measurement for ProcessCpuTime {
-    type Intermediate = u64;
-    type Value = u64;
-
-    fn start(&self) -> u64 {
-        process_cpu_ns()
-    }
-    fn end(&self, start: u64) -> u64 {
-        process_cpu_ns().saturating_sub(start)
-    }
-    fn add(&self, a: &u64, b: &u64) -> u64 {
-        a + b
-    }
-    fn zero(&self) -> u64 {
-        0
-    }
-    fn to_f64(&self, value: &u64) -> f64 {
-        *value as f64
-    }
-    fn formatter(&self) -> &dyn ValueFormatter {
-        // Nanoseconds, shown as durations.
-        static WALL: WallTime = WallTime;
-        WALL.formatter()
-    }
-}
-
 fn cpu_benches(c: &mut Criterion<ProcessCpuTime>) {
     let scenario = scenario();
     let mut msaa = renderer(4);
@@ -174,6 +135,25 @@ fn cpu_benches(c: &mut Criterion<ProcessCpuTime>) {
         let gpu = plain.upload(&shot.scene);
         group.bench_function(format!("render_readback_no_msaa_{w}x{h}"), |b| {
             b.iter(|| black_box(frame(&mut plain, &gpu, &shot.exposure)))
+        });
+        // The sensor model runs on the calling thread only: its CPU time is its cost with
+        // little of the inflation that other jobs on the machine add to wall time.
+        let gpu = msaa.upload(&shot.scene);
+        let clean = frame(&mut msaa, &gpu, &shot.exposure);
+        group.bench_function(format!("sensor_effects_{w}x{h}"), |b| {
+            b.iter(|| {
+                let mut image = clean.clone();
+                shot.sensor.apply(&mut image);
+                black_box(image)
+            })
+        });
+        group.bench_function(format!("sensor_effects_reference_{w}x{h}"), |b| {
+            b.iter(|| {
+                let mut image = clean.clone();
+                shot.sensor
+                    .apply_window_reference(&mut image, (0, 0), (w, h));
+                black_box(image)
+            })
         });
     }
     group.finish();

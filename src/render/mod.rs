@@ -25,6 +25,7 @@ mod pipeline;
 pub mod renderer;
 pub mod scene;
 pub mod sensor;
+mod sensor_noise;
 mod sensor_reference;
 pub mod shot;
 mod targets;

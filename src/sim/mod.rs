@@ -17,4 +17,4 @@ pub use error::SimError;
 pub use items::{BottleItem, BottlePlacement, ItemSet, PartItem, body_pose};
 pub use part::{BoreForm, PartInstance};
 pub use tag::{Tag, groups};
-pub use world::{World, WorldParams};
+pub use world::{CONTACT_MARGIN_M, FREE_SOLVER_ITERATIONS, World, WorldParams};

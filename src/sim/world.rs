@@ -5,16 +5,26 @@ use rapier3d::prelude::*;
 use super::Tag;
 use crate::scenario::PhysicsSection;
 
-/// Solver substeps while no robot collider has a contact (or a predicted one, within 2 cm)
-/// with a moving body: the arm moves free or stands still, and the scene's contacts are parts
-/// and bottles at rest on the belt or in a bin.
+/// Solver substeps while no robot collider is within [`CONTACT_MARGIN_M`] of a moving body: the
+/// arm moves free or stands still, and the scene's contacts are parts and bottles at rest on
+/// the belt or in a bin, or riding it.
 ///
-/// Each substep recomputes the arm's multibody mass matrix, which callgrind puts at 52 % of
-/// a trial's instructions at 8 substeps. With nothing held, the arm's servos track as well at
-/// half the substeps; as soon as a finger comes within the prediction distance of a part the
-/// scenario's count is back for the whole step. Measured: paper_50 in both perception modes,
-/// see docs/speed.md.
-const FREE_SOLVER_ITERATIONS: usize = 4;
+/// Each substep recomputes the arm's multibody mass matrix, its LU factors and the joint
+/// motors' constraints: two thirds of a free step's instructions at 4 substeps (callgrind). A
+/// free arm's servos (1000 rad/s, critically damped, integrated implicitly by rapier) track as
+/// well in one substep, and parts and bottles resting on the belt or in a bin need no more. As
+/// soon as a finger comes within the margin of a part, the scenario's count is back for the
+/// whole step.
+/// Measured: docs/speed.md.
+pub const FREE_SOLVER_ITERATIONS: usize = 1;
+
+/// How near (m) a robot collider's nearest contact point with a moving body must be for the
+/// step to get the scenario's solver substeps. Rapier predicts contacts 2 cm out; counting
+/// those kept the full count through the whole descent, where the open jaws pass a part at the
+/// gripper's open clearance (12 mm by default). The contacts read are a step old, and 1 cm is
+/// what a finger covers in two steps at 1.2 m/s: up to that speed no finger reaches a part
+/// before the full count is on.
+pub const CONTACT_MARGIN_M: f64 = 0.01;
 
 /// Fixed parameters of a physics world.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -25,6 +35,12 @@ pub struct WorldParams {
     pub gravity_m_s2: f64,
     /// Solver iterations per step.
     pub solver_iterations: usize,
+    /// Solver substeps while no robot collider is near a moving body (see
+    /// [`FREE_SOLVER_ITERATIONS`]); at most `solver_iterations`.
+    pub free_solver_iterations: usize,
+    /// Distance within which a robot collider's contact with a moving body brings back the
+    /// full `solver_iterations`, m (see [`CONTACT_MARGIN_M`]).
+    pub contact_margin_m: f64,
     /// Natural frequency of contact constraints, Hz.
     pub contact_frequency_hz: f64,
     /// Damping ratio of contact constraints.
@@ -38,6 +54,8 @@ impl WorldParams {
             dt_s: physics.dt_s,
             gravity_m_s2: 9.81,
             solver_iterations: physics.solver_iterations,
+            free_solver_iterations: FREE_SOLVER_ITERATIONS,
+            contact_margin_m: CONTACT_MARGIN_M,
             contact_frequency_hz: physics.contact_frequency_hz,
             contact_damping_ratio: physics.contact_damping_ratio,
         }
@@ -95,6 +113,27 @@ impl World {
         &self.params
     }
 
+    /// Sets the solver substeps of later steps: `full` while a robot collider is within
+    /// `contact_margin_m` of a moving body, `free` (at most `full`) otherwise. The task may
+    /// call this per phase (for example, the scenario's count from the grasp to the release
+    /// whatever the contacts say); the cell's defaults come from the scenario and
+    /// [`FREE_SOLVER_ITERATIONS`] / [`CONTACT_MARGIN_M`].
+    pub fn set_solver_schedule(&mut self, full: usize, free: usize, contact_margin_m: f64) {
+        self.params.solver_iterations = full.max(1);
+        self.params.free_solver_iterations = free.clamp(1, full.max(1));
+        self.params.contact_margin_m = contact_margin_m;
+    }
+
+    /// The solver substeps the next step gets (see [`World::set_solver_schedule`]).
+    pub fn next_solver_iterations(&self) -> usize {
+        let full = self.params.solver_iterations.max(1);
+        if self.robot_near_moving_body() {
+            full
+        } else {
+            full.min(self.params.free_solver_iterations.max(1))
+        }
+    }
+
     /// Simulated time since creation.
     pub fn time_s(&self) -> f64 {
         self.steps as f64 * self.params.dt_s
@@ -106,24 +145,20 @@ impl World {
     }
 
     /// Advances the world by one fixed step with the given contact hooks: with the scenario's
-    /// solver iterations while the robot touches a moving body, fewer while it touches none
-    /// (four; see `FREE_SOLVER_ITERATIONS` in this file for why).
+    /// solver substeps while a robot collider is near a moving body, fewer while none is (see
+    /// [`FREE_SOLVER_ITERATIONS`] for why).
     pub fn step_with_hooks(&mut self, hooks: &dyn PhysicsHooks) {
-        let full = self.params.solver_iterations.max(1);
-        self.physics.integration_parameters.num_solver_iterations = if self.robot_in_contact() {
-            full
-        } else {
-            full.min(FREE_SOLVER_ITERATIONS)
-        };
+        self.physics.integration_parameters.num_solver_iterations = self.next_solver_iterations();
         self.physics.step_with_events(hooks, &());
         self.steps += 1;
     }
 
-    /// Whether a robot collider has contact points (touching or predicted) with a body that
-    /// can move, as of the last step.
-    fn robot_in_contact(&self) -> bool {
+    /// Whether a robot collider has a contact point with a body that can move, touching or
+    /// predicted within `contact_margin_m`, as of the last step.
+    fn robot_near_moving_body(&self) -> bool {
         let physics = &self.physics;
         let robot = Tag::Robot.bits();
+        let margin = self.params.contact_margin_m as f32;
         physics.narrow_phase.contact_pairs().any(|pair| {
             let (Some(c1), Some(c2)) = (
                 physics.colliders.get(pair.collider1),
@@ -140,12 +175,100 @@ impl World {
                 .parent()
                 .and_then(|body| physics.bodies.get(body))
                 .is_some_and(|body| !body.is_fixed());
-            moving && pair.manifolds().iter().any(|m| !m.points.is_empty())
+            moving
+                && pair
+                    .manifolds()
+                    .iter()
+                    .any(|m| m.points.iter().any(|p| p.dist < margin))
         })
     }
 
     /// Advances the world by one fixed step.
     pub fn step(&mut self) {
         self.step_with_hooks(&());
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use nalgebra::{Isometry3, Point3};
+    use rapier3d::prelude::*;
+
+    use super::*;
+    use crate::math::vector_to_physics;
+    use crate::sim::{FINGER_LINKS, SimArm};
+
+    /// A weightless world with the arm at rest and a ball `gap_m` beyond the left finger's tip,
+    /// after one step (which finds the contacts the next step reads).
+    fn ball_beyond_finger(gap_m: f64, fixed: bool) -> World {
+        let params = WorldParams {
+            gravity_m_s2: 0.0,
+            ..WorldParams::default()
+        };
+        let mut world = World::new(params);
+        let arm = match SimArm::load_builtin(&mut world, Isometry3::translation(0.0, 0.0, 0.6)) {
+            Ok(arm) => arm,
+            Err(e) => panic!("{e}"),
+        };
+        arm.reset_to(&mut world, &[0.3, 0.2, 1.4, 0.0, 1.5, 0.0], 0.03);
+        arm.dress_colliders(&mut world, 1.0);
+        let Some((_, finger)) = arm.link_bodies().iter().find(|(n, _)| n == FINGER_LINKS[0]) else {
+            panic!("no left finger")
+        };
+        let Some(finger_pose) = world.physics.bodies.get(*finger).map(|b| *b.position()) else {
+            panic!("no finger body")
+        };
+        // The pad is a 12 x 30 x 90 mm box centred 95 mm out along the finger's z: its tip is
+        // at 140 mm. The ball (radius 5 mm) sits on that axis, `gap_m` past the tip.
+        let radius = 0.005;
+        let local = Point3::new(0.006, 0.0, 0.14 + gap_m + radius);
+        let centre = crate::math::pose_from_physics(&finger_pose) * local;
+        let builder = if fixed {
+            RigidBodyBuilder::fixed()
+        } else {
+            RigidBodyBuilder::dynamic()
+        };
+        let physics = &mut world.physics;
+        let ball = physics
+            .bodies
+            .insert(builder.translation(vector_to_physics(&centre.coords)));
+        physics.colliders.insert_with_parent(
+            ColliderBuilder::ball(radius as f32),
+            ball,
+            &mut physics.bodies,
+        );
+        world.step();
+        world
+    }
+
+    #[test]
+    fn the_full_count_comes_back_within_the_margin_of_a_moving_body_only() {
+        let full = WorldParams::default().solver_iterations;
+        assert!(full > FREE_SOLVER_ITERATIONS);
+        // Far away, and inside rapier's 2 cm prediction but outside the 1 cm margin: free.
+        for gap in [0.10, 0.015] {
+            let world = ball_beyond_finger(gap, false);
+            assert_eq!(
+                world.next_solver_iterations(),
+                FREE_SOLVER_ITERATIONS,
+                "{gap} m"
+            );
+        }
+        // Within the margin of a body that can move: the full count.
+        for gap in [0.006, 0.002, 0.0] {
+            let world = ball_beyond_finger(gap, false);
+            assert_eq!(world.next_solver_iterations(), full, "{gap} m");
+        }
+        // A fixed body within the margin does not count.
+        assert_eq!(
+            ball_beyond_finger(0.002, true).next_solver_iterations(),
+            FREE_SOLVER_ITERATIONS
+        );
+        // The schedule can be set: the previous one counted every predicted contact.
+        let mut world = ball_beyond_finger(0.015, false);
+        world.set_solver_schedule(full, 4, f64::INFINITY);
+        assert_eq!(world.next_solver_iterations(), full);
+        world.set_solver_schedule(full, 4, 0.01);
+        assert_eq!(world.next_solver_iterations(), 4);
     }
 }
