@@ -29,6 +29,7 @@ pub mod ray_samples;
 pub mod rim;
 pub mod robust_series;
 pub mod roundness;
+pub mod running_sums;
 pub mod scene_draw;
 pub mod scene_space;
 pub mod subpixel;

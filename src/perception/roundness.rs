@@ -164,19 +164,10 @@ fn filtered_roundness_kernel(
             0.5 * if span <= 0.0 { span + TAU } else { span }
         })
         .collect();
-    // cos(k theta_i), sin(k theta_i) for k = 1..=K, point by point (for the quadrature sums)...
-    let mut basis = Vec::with_capacity(n * k_max);
-    for &(_, _, [c1, s1]) in &polar {
-        let (mut c, mut s) = (c1, s1);
-        for _ in 0..k_max {
-            basis.push((c, s));
-            let c_next = c * c1 - s * s1;
-            s = s * c1 + c * s1;
-            c = c_next;
-        }
-    }
-    // ... and harmonic by harmonic (for the series at every point, see `series_values`), by the
-    // same rotation run over all points at once: `cos k theta_i` for all `i`, then the sines.
+    // cos(k theta_i), sin(k theta_i) for k = 1..=K harmonic by harmonic (for the series at every
+    // point, see `series_values`), rotating all points at once: `cos k theta_i` for all `i`, then
+    // the sines. (Rotating each point on its own, harmonic after harmonic, chains every step on
+    // the one before.)
     let mut columns: Vec<Vec<f64>> = Vec::with_capacity(k_max);
     if k_max > 0 {
         let first: Vec<f64> = (polar.iter().map(|p| p.2[0]))
@@ -193,6 +184,18 @@ fn filtered_roundness_kernel(
             columns.push(next);
         }
         columns.insert(0, first);
+    }
+    // The same values point by point (for the quadrature sums).
+    let mut basis = vec![(0.0f64, 0.0f64); n * k_max];
+    for (k, column) in columns.iter().enumerate() {
+        let (cos_k, sin_k) = column.split_at(n);
+        for (b, (&c, &s)) in basis[k..]
+            .iter_mut()
+            .step_by(k_max)
+            .zip(cos_k.iter().zip(sin_k))
+        {
+            *b = (c, s);
+        }
     }
     let mut mean_radius = polar.iter().map(|p| p.1).sum::<f64>() / n as f64;
     let mut harmonics = vec![(0.0f64, 0.0f64); k_max];

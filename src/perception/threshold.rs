@@ -4,6 +4,7 @@
 //! The adaptive mean threshold is our own kernel (running column sums, no division per pixel);
 //! the benchmark compares it with imageproc's, which stays the oracle in tests.
 
+use crate::perception::running_sums::{row_running_sums, slide_and_sum};
 use image::{GrayImage, Luma};
 
 /// A thresholding method and its parameters.
@@ -129,22 +130,28 @@ fn adaptive_mean_kernel(
     let largest_count = ((2 * r + 1).min(h) * (2 * r + 1).min(w)) as i64;
     let exact_in_f32 = largest_count * offset.abs().max((255 + offset).abs()).max(255) < 1 << 24;
     for y in 0..h {
-        if y + r < h {
-            let row = &src[(y + r) * w..(y + r + 1) * w];
-            for (s, &p) in column_sums.iter_mut().zip(row) {
-                *s += u32::from(p);
+        let entering = (y + r < h).then(|| &src[(y + r) * w..(y + r + 1) * w]);
+        let leaving = (y > r).then(|| &src[(y - r - 1) * w..(y - r) * w]);
+        let out = &mut padded[r + 1..r + 1 + w];
+        let running = match (entering, leaving) {
+            (Some(new), Some(old)) => slide_and_sum(avx2, &mut column_sums, new, old, out),
+            (Some(new), None) => {
+                for (s, &p) in column_sums.iter_mut().zip(new) {
+                    *s += u32::from(p);
+                }
+                row_running_sums(avx2, &column_sums, out)
             }
-        }
-        if y > r {
-            let row = &src[(y - r - 1) * w..(y - r) * w];
-            for (s, &p) in column_sums.iter_mut().zip(row) {
-                *s -= u32::from(p);
+            (None, Some(old)) => {
+                for (s, &q) in column_sums.iter_mut().zip(old) {
+                    *s -= u32::from(q);
+                }
+                row_running_sums(avx2, &column_sums, out)
             }
-        }
+            (None, None) => row_running_sums(avx2, &column_sums, out),
+        };
         let y_low = y.saturating_sub(r);
         let y_high = (y + r).min(h - 1);
         let rows_in = (y_high - y_low + 1) as i64;
-        let running = row_running_sums(avx2, &column_sums, &mut padded[r + 1..r + 1 + w]);
         padded[r + 1 + w..].fill(running);
         let src_row = &src[y * w..(y + 1) * w];
         let out_row = &mut dst[y * w..(y + 1) * w];
@@ -183,69 +190,6 @@ fn adaptive_mean_kernel(
         }
     }
     out
-}
-
-/// [`running_sums`], with AVX2 when `avx2` (set only by the AVX2 build).
-#[inline(always)]
-fn row_running_sums(avx2: bool, values: &[u32], out: &mut [u32]) -> u32 {
-    #[cfg(target_arch = "x86_64")]
-    if avx2 {
-        // SAFETY: `avx2` is only set by the AVX2 build, on a CPU found to have it.
-        return unsafe { running_sums_avx2(values, out) };
-    }
-    let _ = avx2;
-    running_sums(values, out)
-}
-
-/// Running (inclusive, wrapping) sums of `values` into `out`, of the same length; returns the
-/// total.
-fn running_sums(values: &[u32], out: &mut [u32]) -> u32 {
-    let mut running = 0u32;
-    for (o, &v) in out.iter_mut().zip(values) {
-        running = running.wrapping_add(v);
-        *o = running;
-    }
-    running
-}
-
-/// [`running_sums`], eight at a time: a log-step scan inside each 128-bit lane, the low lane's
-/// total added to the high one, then the sum of all before. Integer sums: the same values.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-fn running_sums_avx2(values: &[u32], out: &mut [u32]) -> u32 {
-    use std::arch::x86_64::{
-        __m256i, _mm256_add_epi32, _mm256_loadu_si256, _mm256_permute2x128_si256,
-        _mm256_permutevar8x32_epi32, _mm256_set1_epi32, _mm256_setzero_si256, _mm256_shuffle_epi32,
-        _mm256_slli_si256, _mm256_storeu_si256,
-    };
-    let n = values.len().min(out.len());
-    let (values, out) = (&values[..n], &mut out[..n]);
-    let mut carry = _mm256_setzero_si256();
-    let mut chunks = out.chunks_exact_mut(8);
-    for (o, v) in (&mut chunks).zip(values.chunks_exact(8)) {
-        // SAFETY: `v` holds exactly eight `u32`, an unaligned load's 32 bytes.
-        let mut x = unsafe { _mm256_loadu_si256(v.as_ptr().cast::<__m256i>()) };
-        x = _mm256_add_epi32(x, _mm256_slli_si256::<4>(x));
-        x = _mm256_add_epi32(x, _mm256_slli_si256::<8>(x));
-        // Element 3 (the low lane's total) into the high lane, zeros into the low one.
-        let lane_totals = _mm256_shuffle_epi32::<0xFF>(x);
-        x = _mm256_add_epi32(
-            x,
-            _mm256_permute2x128_si256::<0x08>(lane_totals, lane_totals),
-        );
-        let sums = _mm256_add_epi32(x, carry);
-        // SAFETY: `o` holds exactly eight `u32`, an unaligned store's 32 bytes.
-        unsafe { _mm256_storeu_si256(o.as_mut_ptr().cast::<__m256i>(), sums) };
-        // The chunk's own total is broadcast off the carry's chain: one add a chunk on it.
-        carry = _mm256_add_epi32(carry, _mm256_permutevar8x32_epi32(x, _mm256_set1_epi32(7)));
-    }
-    let done = n - chunks.into_remainder().len();
-    let mut running = if done > 0 { out[done - 1] } else { 0 };
-    for (o, &v) in out[done..].iter_mut().zip(&values[done..]) {
-        running = running.wrapping_add(v);
-        *o = running;
-    }
-    running
 }
 
 /// Bright where `p >= Gaussian blur of the image - delta`.
@@ -317,24 +261,25 @@ pub fn otsu_level(image: &GrayImage) -> u8 {
     best
 }
 
-/// Grey-level histogram, counted in four interleaved tables so that runs of equal levels do not
-/// wait on each other's increments.
+/// Grey-level histogram, counted in eight interleaved tables so that runs of equal levels (a
+/// flat belt, a rim) do not wait on each other's increments, from whole 8-byte words.
 fn histogram(image: &GrayImage) -> [u32; 256] {
-    let mut tables = [[0u32; 256]; 4];
+    let mut tables = [[0u32; 256]; 8];
     let raw = image.as_raw();
-    let mut chunks = raw.chunks_exact(4);
+    let mut chunks = raw.chunks_exact(8);
     for c in &mut chunks {
-        tables[0][usize::from(c[0])] += 1;
-        tables[1][usize::from(c[1])] += 1;
-        tables[2][usize::from(c[2])] += 1;
-        tables[3][usize::from(c[3])] += 1;
+        let mut word = c.first_chunk::<8>().map_or(0, |b| u64::from_le_bytes(*b));
+        for table in &mut tables {
+            table[(word & 0xff) as usize] += 1;
+            word >>= 8;
+        }
     }
     for &p in chunks.remainder() {
         tables[0][usize::from(p)] += 1;
     }
     let mut total = [0u32; 256];
     for (i, t) in total.iter_mut().enumerate() {
-        *t = tables[0][i] + tables[1][i] + tables[2][i] + tables[3][i];
+        *t = tables.iter().map(|table| table[i]).sum();
     }
     total
 }
@@ -434,23 +379,6 @@ mod tests {
             prop_assert_eq!(ours.as_raw(), oracle.as_raw());
             let portable = adaptive_mean_kernel(&image, 20, delta, u8::MAX, false);
             prop_assert_eq!(portable.as_raw(), oracle.as_raw());
-        }
-
-        #[test]
-        fn both_builds_of_the_running_sums_agree(
-            values in proptest::collection::vec(any::<u32>(), 0..70)
-        ) {
-            let mut scalar = vec![0u32; values.len()];
-            let total = running_sums(&values, &mut scalar);
-            prop_assert_eq!(total, scalar.last().copied().unwrap_or(0));
-            #[cfg(target_arch = "x86_64")]
-            if std::arch::is_x86_feature_detected!("avx2") {
-                let mut wide = vec![0u32; values.len()];
-                // SAFETY: the CPU has AVX2 (checked above).
-                let wide_total = unsafe { running_sums_avx2(&values, &mut wide) };
-                prop_assert_eq!(&wide, &scalar);
-                prop_assert_eq!(wide_total, total);
-            }
         }
 
         #[test]
