@@ -23,8 +23,6 @@ use crate::sim::Tag;
 
 /// A robot collider this close to a bottle counts as touching it, m.
 const TOUCH_DISTANCE_M: f64 = 0.0005;
-/// Settle after a trajectory's last sample before the next phase, s.
-const TRAJECTORY_SETTLE_S: f64 = 0.15;
 
 /// A trial in progress: the cell, the drives, the monitors, and where the task has got to.
 pub(crate) struct Trial<'a> {
@@ -215,20 +213,34 @@ impl<'a> Trial<'a> {
         Ok(self.world_from_tcp().inverse() * world_from_part)
     }
 
-    /// Plays a trajectory to the end plus a short settle as `phase`, watching a held part with
-    /// `hold`, and the bottles.
+    /// Plays `trajectory` from `from_s` to `to_s` seconds along it as `phase`, then holds its
+    /// last sample for `settle_s`, watching a held part with `hold`, and the bottles. Phases
+    /// that share a blended trajectory each play their own span of it, without a stop between.
     pub(crate) fn execute(
         &mut self,
         phase: Phase,
         trajectory: &JointTrajectory,
+        (from_s, to_s): (f64, f64),
+        settle_s: f64,
         hold: Option<&HoldMonitor>,
     ) -> Result<(), Failure> {
         self.phase = phase;
-        let follower = TrajectoryFollower::new(trajectory.clone(), self.cell.world.time_s());
-        let end = self.cell.world.time_s() + trajectory.duration_s() + TRAJECTORY_SETTLE_S;
-        while self.cell.world.time_s() < end {
-            if let Some(sample) = follower.update(&mut self.cell.world, &self.cell.arm) {
-                self.q = sample.q;
+        let follower = TrajectoryFollower::new(trajectory.clone(), 0.0);
+        // Each command aims at the end of the coming step; the span's last one at `to_s`
+        // exactly, so that the next span starts where this one stopped.
+        let dt = self.cell.world.params().dt_s;
+        let span_s = (to_s - from_s).max(0.0);
+        let steps = (span_s / dt - 1e-9).ceil().max(0.0) as usize;
+        let settle_steps = (settle_s / dt - 1e-9).ceil().max(0.0) as usize;
+        for step in 0..steps + settle_steps {
+            if step < steps {
+                let t_s = from_s + (dt * (step + 1) as f64).min(span_s);
+                if let Some(sample) = follower.command_at(&mut self.cell.world, &self.cell.arm, t_s)
+                {
+                    self.q = sample.q;
+                }
+            } else {
+                self.hold();
             }
             self.step_physics()?;
             if let Some(hold) = hold {
@@ -241,9 +253,6 @@ impl<'a> Trial<'a> {
                     hold.check(phase.as_str(), &tcp_from_part)?;
                 }
             }
-        }
-        if let Some(q) = trajectory.end() {
-            self.q = q;
         }
         Ok(())
     }
