@@ -342,14 +342,16 @@ impl PickPlanner {
                 let mut up = down.clone();
                 up.reverse();
                 reachable = true;
-                let lift = JointTrajectory::along(&self.model, pick.lift_path.clone(), carry);
-                let transport = JointTrajectory::through(&self.model, &[*q_start, q_above], carry);
+                let lift = JointTrajectory::along(&self.model, pick.lift_path.clone(), carry)
+                    .with_tool_limits(&self.model, &grip_limits);
+                let transport = JointTrajectory::through(&self.model, &[*q_start, q_above], carry)
+                    .with_tool_limits(&self.model, &grip_limits);
                 // The carry limit holds for the blended whole: the slow-down of the lift and
                 // the start over to the bin add up at the TCP.
                 let carry_move = JointTrajectory::join(vec![lift, transport], true)
                     .within_tool_limits(&self.model, &grip_limits);
                 let lower = JointTrajectory::along(&self.model, down, carry)
-                    .within_tool_limits(&self.model, &grip_limits);
+                    .with_tool_limits(&self.model, &grip_limits);
                 let retreat = JointTrajectory::join(
                     vec![
                         JointTrajectory::along(&self.model, up, speed),

@@ -191,6 +191,42 @@ impl JointTrajectory {
         }
     }
 
+    /// The same path with the TCP's speed capped by lowering the cruise rates alone (the ramps
+    /// keep their acceleration, so a speed cap costs less time than a uniform slow-down), then
+    /// slowed down uniformly if the TCP still breaks `limits`. For a trajectory without blends;
+    /// one with blends is only slowed down uniformly.
+    pub fn with_tool_limits(self, arm: &ArmModel, limits: &ToolLimits) -> Self {
+        let (speed, _) = self.peak_tool_motion(arm);
+        let blended = self
+            .segments
+            .windows(2)
+            .any(|w| w[1].start_s + END_TOLERANCE_S < w[0].start_s + w[0].scaling.duration_s());
+        if speed <= limits.speed_m_s || blended {
+            return self.within_tool_limits(arm, limits);
+        }
+        // The TCP's speed is linear in the joint rates at each point of the path.
+        let factor = limits.speed_m_s / speed / 1.02;
+        let mut slowed = self;
+        let mut end_s = 0.0;
+        let mut part = 0;
+        for segment in &mut slowed.segments {
+            let s = segment.scaling;
+            segment.scaling = TimeScaling::new(s.max_rate * factor, s.accel, s.decel);
+            if part < slowed.part_starts_s.len()
+                && (segment.start_s - slowed.part_starts_s[part]).abs() <= END_TOLERANCE_S
+            {
+                slowed.part_starts_s[part] = end_s;
+                part += 1;
+            }
+            segment.start_s = end_s;
+            end_s += segment.scaling.duration_s();
+            if part > 0 && part <= slowed.part_ends_s.len() {
+                slowed.part_ends_s[part - 1] = end_s;
+            }
+        }
+        slowed.within_tool_limits(arm, limits)
+    }
+
     /// Peak TCP speed (m/s) and acceleration (m/s^2) along the trajectory, by finite
     /// differences of forward kinematics.
     pub fn peak_tool_motion(&self, arm: &ArmModel) -> (f64, f64) {

@@ -152,5 +152,18 @@ fn tool_limits_slow_the_whole_path_down() {
         assert!(accel <= limits.accel_m_s2 * 1.01, "{accel}");
         assert!(slow.duration_s() >= fast.duration_s());
         assert_eq!(slow.end(), Some(b));
+        // A speed cap alone lowers the cruise rate and keeps the ramps: within the limits, at
+        // least as fast as the uniform slow-down, and still within the joints' own limits.
+        let speed_only = ToolLimits {
+            speed_m_s: 0.5,
+            accel_m_s2: 1e3,
+        };
+        let capped = fast.clone().with_tool_limits(&arm, &speed_only);
+        let (speed, _) = capped.peak_tool_motion(&arm);
+        assert!(speed <= speed_only.speed_m_s * 1.01, "{speed}");
+        let uniform = fast.clone().within_tool_limits(&arm, &speed_only);
+        assert!(capped.duration_s() <= uniform.duration_s() + 1e-9);
+        assert_eq!(capped.end(), Some(b));
+        check_limits(&arm, &capped, 1.0);
     }
 }

@@ -155,7 +155,7 @@ impl Default for RobotSection {
             // record's measured joint_speed_ratio); at 0.95 the measured speeds stay within the
             // published limits.
             speed_fraction: 0.95,
-            carry_speed_fraction: 0.95,
+            carry_speed_fraction: 0.9,
             urdf: None,
         }
     }
