@@ -1,5 +1,6 @@
 //! `twincell bench`: a scenario's trials run as `twincell run` does, reported as the wall-clock
-//! share of each stage (physics, render, detection, metrology, planning) per trial.
+//! share of each stage (physics, render, detection, metrology, planning) per trial, beside the
+//! simulated seconds of each phase of the cell's cycle and how the arm moved.
 
 use std::process::ExitCode;
 
@@ -7,6 +8,7 @@ use anyhow::Result;
 use clap::Args;
 use serde::Serialize;
 use twincell::batch::StageTiming;
+use twincell::outcome::TrialRecord;
 
 use super::run::{RunArgs, run_scenario};
 
@@ -27,6 +29,29 @@ struct StageCost {
     share: f64,
 }
 
+/// One phase's simulated time.
+#[derive(Debug, Serialize)]
+struct PhaseCost {
+    phase: &'static str,
+    /// Mean simulated seconds per trial.
+    mean_s: f64,
+}
+
+/// The arm's motion over the batch, as the physics measured it.
+#[derive(Debug, Default, Serialize)]
+struct MotionSummary {
+    /// Mean simulated cycle, s.
+    mean_cycle_s: f64,
+    /// Largest measured joint speed over its limit.
+    max_joint_speed_ratio: f64,
+    /// Smallest measured distance of a joint from its position limits, rad.
+    min_joint_limit_margin_rad: f64,
+    /// Largest commanded-to-measured joint difference, rad.
+    max_tracking_error_rad: f64,
+    /// Largest drift of a held part in the jaws, mm.
+    max_grip_drift_mm: f64,
+}
+
 /// What `twincell bench --json` prints.
 #[derive(Debug, Serialize)]
 struct BenchReport {
@@ -42,6 +67,9 @@ struct BenchReport {
     /// Summed trial wall time, s (more than `wall_s` with several jobs).
     trial_total_s: f64,
     stages: Vec<StageCost>,
+    /// Simulated seconds per phase of the cell's cycle, mean per trial.
+    phases: Vec<PhaseCost>,
+    motion: MotionSummary,
 }
 
 /// Runs `twincell bench`.
@@ -82,14 +110,15 @@ pub fn run(args: &BenchArgs) -> Result<ExitCode> {
             share: share(t.total_s),
         })
         .collect();
-    let sim_time_s = std::fs::read_to_string(&summary.trials_path)
+    let records: Vec<TrialRecord> = std::fs::read_to_string(&summary.trials_path)
         .map(|text| {
             text.lines()
-                .filter_map(|line| serde_json::from_str::<serde_json::Value>(line).ok())
-                .filter_map(|v| v["sim_time_s"].as_f64())
-                .sum()
+                .filter_map(|line| serde_json::from_str(line).ok())
+                .collect()
         })
-        .unwrap_or(0.0);
+        .unwrap_or_default();
+    let sim_time_s = records.iter().map(|r| r.sim_time_s).sum();
+    let (phases, motion) = motion_summary(&records);
     let bench = BenchReport {
         scenario: report.scenario.clone(),
         perception: report.perception.as_str(),
@@ -100,6 +129,8 @@ pub fn run(args: &BenchArgs) -> Result<ExitCode> {
         sim_time_s,
         trial_total_s,
         stages: costs,
+        phases,
+        motion,
     };
     if args.run.json {
         println!("{}", serde_json::to_string_pretty(&bench)?);
@@ -127,6 +158,48 @@ pub fn run(args: &BenchArgs) -> Result<ExitCode> {
                 100.0 * c.share
             );
         }
+        println!("{:<12}{:>10}", "phase", "sim s");
+        for p in &bench.phases {
+            println!("{:<12}{:>10.3}", p.phase, p.mean_s);
+        }
+        let m = &bench.motion;
+        println!(
+            "cycle {:.2} s; joint speed {:.2} of its limit; limit margin {:.3} rad; \
+             tracking {:.4} rad; grip drift {:.2} mm",
+            m.mean_cycle_s,
+            m.max_joint_speed_ratio,
+            m.min_joint_limit_margin_rad,
+            m.max_tracking_error_rad,
+            m.max_grip_drift_mm
+        );
     }
     Ok(ExitCode::from(summary.exit_code()))
+}
+
+/// Mean simulated seconds per phase and the extremes of the measured motion over `records`.
+fn motion_summary(records: &[TrialRecord]) -> (Vec<PhaseCost>, MotionSummary) {
+    let count = records.len().max(1) as f64;
+    let mut phases: Vec<PhaseCost> = twincell::outcome::PhaseSeconds::default()
+        .named()
+        .into_iter()
+        .map(|(phase, _)| PhaseCost { phase, mean_s: 0.0 })
+        .collect();
+    let mut motion = MotionSummary {
+        min_joint_limit_margin_rad: if records.is_empty() { 0.0 } else { f64::MAX },
+        ..MotionSummary::default()
+    };
+    for record in records {
+        for (cost, (_, s)) in phases.iter_mut().zip(record.motion.phase_s.named()) {
+            cost.mean_s += s / count;
+        }
+        let m = &record.motion;
+        motion.mean_cycle_s += record.cycle_time_s / count;
+        motion.max_joint_speed_ratio = motion.max_joint_speed_ratio.max(m.joint_speed_ratio);
+        motion.min_joint_limit_margin_rad = motion
+            .min_joint_limit_margin_rad
+            .min(m.joint_limit_margin_rad);
+        motion.max_tracking_error_rad = motion.max_tracking_error_rad.max(m.tracking_error_rad);
+        motion.max_grip_drift_mm = motion.max_grip_drift_mm.max(m.grip_drift_mm);
+    }
+    (phases, motion)
 }

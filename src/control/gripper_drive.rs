@@ -30,6 +30,17 @@ impl GripperDrive {
         self.force_n = force_n;
     }
 
+    /// Commands the jaws open to `offset_m` with at most `force_n`, the drive starting from
+    /// where the pads stand (`pads_m`, the smaller pad offset): a drive stalled on a part
+    /// reverses from the contact, as a real one does, not from the set-point it was pushing
+    /// towards to build the grip force.
+    pub fn open_from(&mut self, pads_m: f64, offset_m: f64, force_n: f64) {
+        if offset_m > self.target_m {
+            self.target_m = self.target_m.max(pads_m.min(offset_m));
+        }
+        self.set(offset_m, force_n);
+    }
+
     /// The drive's set-point now, m.
     pub fn target_m(&self) -> f64 {
         self.target_m

@@ -19,10 +19,16 @@ pub struct HoldMonitor {
 }
 
 impl HoldMonitor {
+    /// How far the part at `now` (its pose in the TCP frame) has moved from where the jaws
+    /// closed on it, m.
+    pub fn drift_m(&self, now: &Isometry3<f64>) -> f64 {
+        (now.translation.vector - self.tcp_from_part.translation.vector).norm()
+    }
+
     /// Checks the part's pose in the TCP frame `now` during `phase`: a slip or a drop is a
     /// failure with the drift in its detail.
     pub fn check(&self, phase: &str, now: &Isometry3<f64>) -> Result<(), Failure> {
-        let drift = (now.translation.vector - self.tcp_from_part.translation.vector).norm();
+        let drift = self.drift_m(now);
         if drift <= self.slip_tolerance_m {
             return Ok(());
         }

@@ -33,7 +33,18 @@ impl TrajectoryFollower {
     pub fn update(&self, world: &mut World, arm: &SimArm) -> Option<TrajectorySample> {
         // The command holds over the coming step, so aim at its end.
         let t = world.time_s() + world.params().dt_s - self.start_s;
-        let sample = self.trajectory.sample(t)?;
+        self.command_at(world, arm, t)
+    }
+
+    /// Commands the servos with the trajectory's state `t_s` seconds along it (the end of the
+    /// coming step); returns the commanded sample.
+    pub fn command_at(
+        &self,
+        world: &mut World,
+        arm: &SimArm,
+        t_s: f64,
+    ) -> Option<TrajectorySample> {
+        let sample = self.trajectory.sample(t_s)?;
         arm.command(world, &sample.q, &sample.qd);
         Some(sample)
     }

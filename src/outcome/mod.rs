@@ -2,9 +2,11 @@
 //! Below the cell, the task layer and the batch driver, which all speak these types.
 
 mod failure;
+mod motion_record;
 mod trial_record;
 
 pub use failure::{Failure, fail};
+pub use motion_record::{MotionRecord, PhaseSeconds};
 pub use trial_record::{
     DecisionRecord, FailureReason, Misidentification, Outcome, PartRecord, Perception,
     StreamPartRecord, StreamRecord, TrialRecord, TrialTiming,

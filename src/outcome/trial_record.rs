@@ -2,6 +2,8 @@
 
 use serde::{Deserialize, Serialize};
 
+use super::MotionRecord;
+
 /// Where perception's answers came from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
 #[serde(rename_all = "snake_case")]
@@ -175,6 +177,9 @@ pub struct TrialRecord {
     pub cycle_time_s: f64,
     /// Simulated time of the whole trial, s.
     pub sim_time_s: f64,
+    /// How the arm moved: simulated seconds per phase, measured joint motion, grip drift.
+    #[serde(default)]
+    pub motion: MotionRecord,
     /// Wall-clock costs (excluded from determinism comparisons).
     pub timing: TrialTiming,
     /// A stream trial's per-part results (absent for single-part trials, whose part is
@@ -250,6 +255,7 @@ impl TrialRecord {
             distractor_displacement_mm: 0.0,
             cycle_time_s: 0.0,
             sim_time_s: 0.0,
+            motion: MotionRecord::default(),
             timing: TrialTiming::default(),
             stream: None,
         }

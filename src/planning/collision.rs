@@ -186,23 +186,49 @@ impl CollisionChecker {
         carried: Option<&Carried>,
         ignore: &[&str],
     ) -> Option<CollisionHit> {
-        let duration = trajectory.duration_s();
-        let start = trajectory.sample(0.0)?.q;
-        let end = trajectory.end()?;
-        let span: f64 = start
+        let span = (0.0, trajectory.duration_s());
+        self.check_span(trajectory, span, finger_offset_m, carried, ignore)
+    }
+
+    /// The first collision along `trajectory` between `from_s` and `to_s` seconds from its
+    /// start. Samples are spaced so that no joint at its velocity limit moves more than the
+    /// checker's resolution between them (a blended path may leave its waypoints' polyline).
+    pub fn check_span(
+        &self,
+        trajectory: &JointTrajectory,
+        (from_s, to_s): (f64, f64),
+        finger_offset_m: f64,
+        carried: Option<&Carried>,
+        ignore: &[&str],
+    ) -> Option<CollisionHit> {
+        // Walk the trajectory in fine time steps (cheap) and check a configuration (dear)
+        // whenever a joint has moved the resolution since the last one checked.
+        let fastest = self
+            .model
+            .limits
             .iter()
-            .zip(&end)
-            .map(|(a, b)| (a - b).abs())
+            .map(|l| l.max_velocity_rad_s)
             .fold(0.0, f64::max);
-        // Waypoints can make the path longer than start-to-end; sample by duration too.
-        let samples = ((span / self.resolution_rad).ceil() as usize)
-            .max((duration / 0.05).ceil() as usize)
-            .max(1);
-        for i in 0..=samples {
-            let t = duration * i as f64 / samples as f64;
-            let sample = trajectory.sample(t)?;
+        let length = (to_s - from_s).max(0.0);
+        let steps = ((4.0 * length * fastest / self.resolution_rad).ceil() as usize).max(1);
+        let mut checked: Option<JointVector> = None;
+        for i in 0..=steps {
+            let t = from_s + length * i as f64 / steps as f64;
+            let q = trajectory.sample(t)?.q;
+            let moved = checked.is_none_or(|last| {
+                let step = q
+                    .iter()
+                    .zip(&last)
+                    .map(|(a, b)| (a - b).abs())
+                    .fold(0.0, f64::max);
+                step >= 0.75 * self.resolution_rad
+            });
+            if !(moved || i == steps) {
+                continue;
+            }
+            checked = Some(q);
             if let Some((link, obstacle)) =
-                self.check_configuration(&sample.q, finger_offset_m, carried, ignore)
+                self.check_configuration(&q, finger_offset_m, carried, ignore)
             {
                 return Some(CollisionHit {
                     link,

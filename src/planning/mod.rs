@@ -2,15 +2,18 @@
 //! trajectories within the arm's limits.
 
 mod collision;
+mod payload;
 mod percept;
 mod pick_planner;
 #[cfg(test)]
 mod pick_planner_tests;
 mod robot_shapes;
 mod straight_line;
+mod time_scaling;
 mod trajectory;
 
 pub use collision::{Carried, CollisionChecker, CollisionHit, LinkMount, Obstacle, RobotShape};
+pub use payload::{GRIP_SAFETY_FACTOR, Payload};
 pub use percept::{PerceivedObstacle, Percept, bottle_obstacle, part_obstacle};
 pub use pick_planner::{
     GRASP_TCP_ABOVE_BOTTOM_M, PART_OBSTACLE, PickPlan, PickPlanner, PlacePlan, bin_slot,
@@ -18,4 +21,5 @@ pub use pick_planner::{
 };
 pub use robot_shapes::capture_robot_shapes;
 pub use straight_line::straight_line;
-pub use trajectory::{JointTrajectory, TrajectorySample};
+pub use time_scaling::{ScalingSample, TimeScaling};
+pub use trajectory::{JointTrajectory, ToolLimits, TrajectorySample};

@@ -5,7 +5,8 @@ use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use rapier3d::geometry::SharedShape;
 
 use super::{
-    Carried, CollisionChecker, JointTrajectory, Obstacle, Percept, RobotShape, straight_line,
+    Carried, CollisionChecker, JointTrajectory, Obstacle, Payload, Percept, RobotShape,
+    straight_line,
 };
 use crate::cell::{BinBody, SceneryBox};
 use crate::kinematics::{AnalyticIk, ArmModel, IkSolver, JointVector};
@@ -29,27 +30,29 @@ const BIN_SLOT_PITCH_M: f64 = 0.09;
 /// Clearance the planner keeps from obstacles, m.
 const PLANNING_MARGIN_M: f64 = 0.008;
 
-/// The motion of a pick: over the part, down to it, up with it.
+/// The motion of a pick: over the part and down to it.
 #[derive(Debug, Clone)]
 pub struct PickPlan {
-    /// From where the arm stands to above the part, jaws open.
-    pub to_pregrasp: JointTrajectory,
-    /// Straight down to the grasp pose.
-    pub descend: JointTrajectory,
-    /// Straight up with the part.
-    pub lift: JointTrajectory,
+    /// From where the arm stands to above the part (part 0), blended into the straight descent
+    /// to the grasp pose (part 1), jaws open.
+    pub approach: JointTrajectory,
+    /// The arm above the part, where the descent's straight line starts.
+    pub pregrasp: JointVector,
+    /// Straight up from the grasp pose, the joint path not yet timed (the carry limit times it).
+    pub lift_path: Vec<JointVector>,
     /// Where the lift ends.
     pub lift_end: JointVector,
 }
 
-/// The motion of a place: over to the bin, down into it, back home.
+/// The motion of a place: up and over to the bin, down into it, back home.
 #[derive(Debug, Clone)]
 pub struct PlacePlan {
-    /// From the end of the lift to above the bin slot, carrying.
-    pub transport: JointTrajectory,
-    /// Straight down into the slot.
+    /// Straight up with the part (part 0), blended into the move above the bin slot (part 1),
+    /// within the grip's carry limit.
+    pub carry: JointTrajectory,
+    /// Straight down into the slot, within the carry limit.
     pub lower: JointTrajectory,
-    /// Straight up, then home, jaws open.
+    /// Straight up (part 0), blended into the move home (part 1), jaws open.
     pub retreat: JointTrajectory,
 }
 
@@ -74,7 +77,7 @@ pub struct PickPlanner {
     pub open_clearance_m: f64,
     /// Share of the joint limits for moves with empty jaws.
     pub speed_fraction: f64,
-    /// Share of the joint limits for moves carrying a part.
+    /// Share of the joint limits for moves carrying a part (the grip's own limit applies too).
     pub carry_speed_fraction: f64,
     /// Where the arm goes home to.
     pub home_q_rad: JointVector,
@@ -211,7 +214,6 @@ impl PickPlanner {
         });
         let open = self.open_offset_m(percept);
         let speed = self.speed_fraction;
-        let carry = self.carry_speed_fraction;
         let mut reachable = false;
         let mut last_hit = String::new();
         // Upright first, then leaning away from either side: a tall bottle next to the part can
@@ -253,11 +255,17 @@ impl PickPlanner {
                 let q_lift = up[up.len() - 1];
                 reachable = true;
                 let to_pregrasp = JointTrajectory::through(&self.model, &[*q_now, q_above], speed);
-                let descend = JointTrajectory::along(&self.model, down, speed * 0.5);
-                let lift = JointTrajectory::through(&self.model, &[q_at, q_lift], carry * 0.5);
+                let descend = JointTrajectory::along(&self.model, down, speed);
+                // The descent starts while the arm still slows down over the part: the fingers
+                // leave the straight line only in that overlap, which is checked against the
+                // part too; after it the fingers go down around the part.
+                let approach = JointTrajectory::join(vec![to_pregrasp, descend], true);
+                let blend_end_s = approach.part_ends_s()[0];
+                // The descent first: a pick that fails, fails there, by the bottle.
+                let down_s = (blend_end_s, approach.duration_s());
                 let hit = checker
-                    .check_trajectory(&descend, open, None, &[PART_OBSTACLE])
-                    .or_else(|| checker.check_trajectory(&to_pregrasp, open, None, &[]));
+                    .check_span(&approach, down_s, open, None, &[PART_OBSTACLE])
+                    .or_else(|| checker.check_span(&approach, (0.0, blend_end_s), open, None, &[]));
                 match hit {
                     Some(hit) => {
                         last_hit = format!(
@@ -267,9 +275,9 @@ impl PickPlanner {
                     }
                     None => {
                         return Ok(PickPlan {
-                            to_pregrasp,
-                            descend,
-                            lift,
+                            approach,
+                            pregrasp: q_above,
+                            lift_path: up,
                             lift_end: q_lift,
                         });
                     }
@@ -287,15 +295,19 @@ impl PickPlanner {
     }
 
     /// The first collision-free place of `percept`'s part into `bin`'s next free slot (after
-    /// `placed_before` parts) from the lift's end `q_start`.
+    /// `placed_before` parts), lifted along `pick`'s lift and carried within what the grip on
+    /// `payload` holds.
     pub fn plan_place(
         &self,
         percept: &Percept,
         bin: &BinBody,
         placed_before: usize,
-        q_start: &JointVector,
+        pick: &PickPlan,
+        payload: &Payload,
         checker: &CollisionChecker,
     ) -> Result<PlacePlan, Failure> {
+        let q_start = &pick.lift_end;
+        let grip_limits = payload.tool_limits();
         let floor = bin.floor_center + bin_slot(bin, placed_before);
         let place_z = floor.z + 0.012 + GRASP_TCP_ABOVE_BOTTOM_M;
         let above_z = floor.z + bin.wall_height + 0.04 + GRASP_TCP_ABOVE_BOTTOM_M;
@@ -330,15 +342,32 @@ impl PickPlanner {
                 let mut up = down.clone();
                 up.reverse();
                 reachable = true;
-                let transport = JointTrajectory::through(&self.model, &[*q_start, q_above], carry);
-                let lower = JointTrajectory::along(&self.model, down, carry * 0.5);
-                let retreat = JointTrajectory::along(&self.model, up, speed * 0.5).then(
-                    JointTrajectory::through(&self.model, &[q_above, self.home_q_rad], speed),
+                let lift = JointTrajectory::along(&self.model, pick.lift_path.clone(), carry)
+                    .with_tool_limits(&self.model, &grip_limits);
+                let transport = JointTrajectory::through(&self.model, &[*q_start, q_above], carry)
+                    .with_tool_limits(&self.model, &grip_limits);
+                // The carry limit holds for the blended whole: the slow-down of the lift and
+                // the start over to the bin add up at the TCP.
+                let carry_move = JointTrajectory::join(vec![lift, transport], true)
+                    .within_tool_limits(&self.model, &grip_limits);
+                let lower = JointTrajectory::along(&self.model, down, carry)
+                    .with_tool_limits(&self.model, &grip_limits);
+                let retreat = JointTrajectory::join(
+                    vec![
+                        JointTrajectory::along(&self.model, up, speed),
+                        JointTrajectory::through(&self.model, &[q_above, self.home_q_rad], speed),
+                    ],
+                    true,
                 );
                 let ignore = [PART_OBSTACLE];
+                // From where the move over to the bin starts: before that the part rises
+                // straight off the belt it stands on.
+                let over_s = (carry_move.part_starts_s()[1], carry_move.duration_s());
                 let hit = checker
                     .check_trajectory(&lower, grip, Some(&carried), &ignore)
-                    .or_else(|| checker.check_trajectory(&transport, grip, Some(&carried), &ignore))
+                    .or_else(|| {
+                        checker.check_span(&carry_move, over_s, grip, Some(&carried), &ignore)
+                    })
                     .or_else(|| checker.check_trajectory(&retreat, open, None, &ignore));
                 match hit {
                     Some(hit) => {
@@ -349,7 +378,7 @@ impl PickPlanner {
                     }
                     None => {
                         return Ok(PlacePlan {
-                            transport,
+                            carry: carry_move,
                             lower,
                             retreat,
                         });

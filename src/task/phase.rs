@@ -1,7 +1,7 @@
 //! The phases of a trial, as an explicit state machine: what follows what, and which phases end
 //! by a time-out rather than by a trajectory's end.
 
-use crate::outcome::{Failure, FailureReason};
+use crate::outcome::{Failure, FailureReason, PhaseSeconds};
 use crate::scenario::TaskSection;
 
 /// What the cell is doing.
@@ -84,6 +84,24 @@ impl Phase {
         }
     }
 
+    /// This phase's entry in a trial's seconds per phase.
+    pub fn seconds_in(self, seconds: &mut PhaseSeconds) -> &mut f64 {
+        match self {
+            Self::Wait => &mut seconds.wait,
+            Self::Perceive => &mut seconds.perceive,
+            Self::Plan => &mut seconds.plan,
+            Self::Approach => &mut seconds.approach,
+            Self::Descend => &mut seconds.descend,
+            Self::Grasp => &mut seconds.grasp,
+            Self::Lift => &mut seconds.lift,
+            Self::Transport => &mut seconds.transport,
+            Self::Place => &mut seconds.place,
+            Self::Release => &mut seconds.release,
+            Self::Retreat => &mut seconds.retreat,
+            Self::Pass => &mut seconds.pass,
+        }
+    }
+
     /// Whether the part is in the jaws, so that the hold monitor watches it.
     pub fn holds_part(self) -> bool {
         matches!(self, Self::Lift | Self::Transport | Self::Place)
@@ -143,6 +161,25 @@ mod tests {
         assert_eq!(seen, Phase::PICK_CYCLE);
         assert_eq!(Phase::Retreat.next(), Phase::Wait);
         assert_eq!(Phase::Pass.next(), Phase::Wait);
+    }
+
+    #[test]
+    fn each_phase_counts_its_own_seconds() {
+        let mut seconds = PhaseSeconds::default();
+        let all = [Phase::Wait, Phase::Pass]
+            .into_iter()
+            .chain(Phase::PICK_CYCLE);
+        for (k, phase) in all.enumerate() {
+            *phase.seconds_in(&mut seconds) += k as f64 + 1.0;
+        }
+        for (name, s) in seconds.named() {
+            let phase = [Phase::Wait, Phase::Pass]
+                .into_iter()
+                .chain(Phase::PICK_CYCLE)
+                .position(|p| p.as_str() == name)
+                .expect("every named phase is a phase");
+            assert_eq!(s, phase as f64 + 1.0, "{name}");
+        }
     }
 
     #[test]

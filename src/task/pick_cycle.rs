@@ -9,17 +9,18 @@ use super::phase::Phase;
 use super::trial::Trial;
 use crate::control::HoldMonitor;
 use crate::outcome::{DecisionRecord, Failure, FailureReason, PartRecord, fail};
-use crate::planning::{Percept, PickPlan, PlacePlan};
+use crate::planning::{JointTrajectory, Payload, Percept, PickPlan, PlacePlan};
 use crate::sim::JAW_SPEED_M_S;
 
 /// Time for the grip force to build once the drive reaches its end, s.
 const GRIP_BUILD_S: f64 = 0.1;
 /// Force with which the jaws open, N.
 const OPEN_FORCE_N: f64 = 40.0;
-/// Settle with open jaws over the placed part, s.
-const RELEASE_S: f64 = 0.3;
-/// Settle at home after the retreat, s.
-const HOME_SETTLE_S: f64 = 0.4;
+/// Rest after a motion that ends where the jaws act (at the grasp, in the bin), s: the stiff
+/// servos (1000 rad/s) close their last tracking error within a few steps.
+const STOP_SETTLE_S: f64 = 0.02;
+/// Extra opening time once the pads have cleared the part, s.
+const RELEASE_MARGIN_S: f64 = 0.02;
 
 /// What one pick cycle did to its part.
 pub(crate) struct Cycle {
@@ -124,21 +125,14 @@ impl Trial<'_> {
                     state.pick = Some(pick);
                     state.place = Some(place);
                 }
-                Phase::Approach => {
+                Phase::Approach | Phase::Descend => {
                     let (Some(percept), Some(pick)) = (&state.percept, &state.pick) else {
                         return fail(FailureReason::Panic, "approach without a plan");
                     };
                     let open = self.planner.open_offset_m(percept);
                     self.gripper.set(open, OPEN_FORCE_N);
-                    let trajectory = pick.to_pregrasp.clone();
-                    self.execute(Phase::Approach, &trajectory, None)?;
-                }
-                Phase::Descend => {
-                    let Some(pick) = &state.pick else {
-                        return fail(FailureReason::Panic, "descent without a plan");
-                    };
-                    let trajectory = pick.descend.clone();
-                    self.execute(Phase::Descend, &trajectory, None)?;
+                    let trajectory = pick.approach.clone();
+                    self.play_part(phase, &trajectory, Phase::Approach, None)?;
                 }
                 Phase::Grasp => {
                     let Some(percept) = &state.percept else {
@@ -151,34 +145,38 @@ impl Trial<'_> {
                     });
                 }
                 Phase::Lift | Phase::Transport | Phase::Place => {
-                    let (Some(pick), Some(place), Some(hold)) =
-                        (&state.pick, &state.place, &state.hold)
-                    else {
+                    let (Some(place), Some(hold)) = (&state.place, &state.hold) else {
                         return fail(FailureReason::Panic, "carrying without a plan or a grip");
                     };
-                    let trajectory = match phase {
-                        Phase::Lift => pick.lift.clone(),
-                        Phase::Transport => place.transport.clone(),
-                        _ => place.lower.clone(),
-                    };
                     let hold = *hold;
-                    self.execute(phase, &trajectory, Some(&hold))?;
+                    if phase == Phase::Place {
+                        let trajectory = place.lower.clone();
+                        let span = (0.0, trajectory.duration_s());
+                        self.execute(phase, &trajectory, span, STOP_SETTLE_S, Some(&hold))?;
+                    } else {
+                        let trajectory = place.carry.clone();
+                        self.play_part(phase, &trajectory, Phase::Lift, Some(&hold))?;
+                    }
                 }
                 Phase::Release => {
                     let Some(percept) = &state.percept else {
                         return fail(FailureReason::Panic, "release without a percept");
                     };
                     let open = self.planner.open_offset_m(percept);
-                    self.gripper.set(open, OPEN_FORCE_N);
-                    self.settle(RELEASE_S)?;
+                    let pads = self.cell.arm.finger_positions_m(&self.cell.world);
+                    let pads_m = pads[0].min(pads[1]);
+                    self.gripper.open_from(pads_m, open, OPEN_FORCE_N);
+                    // Until the drive has brought both pads clear of the part's wall.
+                    let travel_m = (open - self.gripper.target_m()).max(0.0);
+                    self.settle(travel_m / JAW_SPEED_M_S + RELEASE_MARGIN_S)?;
                 }
                 Phase::Retreat => {
                     let Some(place) = &state.place else {
                         return fail(FailureReason::Panic, "retreat without a plan");
                     };
                     let trajectory = place.retreat.clone();
-                    self.execute(Phase::Retreat, &trajectory, None)?;
-                    self.settle(HOME_SETTLE_S)?;
+                    let span = (0.0, trajectory.duration_s());
+                    self.execute(Phase::Retreat, &trajectory, span, 0.0, None)?;
                     return Ok(());
                 }
                 Phase::Wait | Phase::Pass => {
@@ -186,6 +184,57 @@ impl Trial<'_> {
                 }
             }
             phase = phase.next();
+        }
+    }
+
+    /// Plays `phase`'s part of a trajectory of two blended parts, the first played as `first`:
+    /// the first part up to where the second starts, then the second to the end and a short
+    /// rest.
+    fn play_part(
+        &mut self,
+        phase: Phase,
+        trajectory: &JointTrajectory,
+        first: Phase,
+        hold: Option<&HoldMonitor>,
+    ) -> Result<(), Failure> {
+        let split_s = trajectory.part_starts_s().get(1).copied().unwrap_or(0.0);
+        if phase == first {
+            self.execute(phase, trajectory, (0.0, split_s), 0.0, hold)
+        } else {
+            let span = (split_s, trajectory.duration_s());
+            self.execute(phase, trajectory, span, STOP_SETTLE_S, hold)
+        }
+    }
+
+    /// What the jaws will hold: the detected type's tube, the grip force chosen for it and the
+    /// pads' friction.
+    fn payload(&self, percept: &Percept) -> Payload {
+        let mass_kg = self
+            .scenario
+            .part_types
+            .iter()
+            .find(|t| t.name == percept.part_type)
+            .map_or_else(
+                // A type the table lacks: a solid steel cylinder of the percept's size, the
+                // heaviest it could be.
+                || {
+                    std::f64::consts::PI
+                        * percept.part_outer_radius_m.powi(2)
+                        * percept.part_height_m
+                        * 7850.0
+                },
+                |t| {
+                    let (outer, bore) = (t.outer_diameter_mm / 2e3, t.bore_diameter_mm / 2e3);
+                    std::f64::consts::PI
+                        * (outer * outer - bore * bore)
+                        * (t.height_mm / 1e3)
+                        * t.density_kg_m3
+                },
+            );
+        Payload {
+            mass_kg,
+            grip_force_n: self.grip_recipe_n,
+            pad_friction: self.scenario.gripper.pad_friction,
         }
     }
 
@@ -222,9 +271,10 @@ impl Trial<'_> {
             );
         };
         let placed_before = self.bin_fill.get(&bin.name).copied().unwrap_or(0);
+        let payload = self.payload(percept);
         let place =
             self.planner
-                .plan_place(percept, bin, placed_before, &pick.lift_end, &checker)?;
+                .plan_place(percept, bin, placed_before, &pick, &payload, &checker)?;
         Ok((pick, place))
     }
 

@@ -52,6 +52,7 @@ impl Trial<'_> {
             distractor_displacement_mm: cycle.displacement_m * 1e3,
             cycle_time_s: cycle.cycle_time_s,
             sim_time_s,
+            motion: self.motion,
             timing: self.timing,
             stream: None,
         }
@@ -228,6 +229,7 @@ impl Trial<'_> {
             distractor_displacement_mm: displacement_m * 1e3,
             cycle_time_s: first_stop_s.map_or(0.0, |t| sim_time_s - t),
             sim_time_s,
+            motion: self.motion,
             timing: self.timing,
             stream: Some(StreamRecord {
                 parts_planned: planned,

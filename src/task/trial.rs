@@ -14,8 +14,8 @@ use super::observer::{CellView, ObserverSlot, TrialObserver};
 use super::phase::{Phase, PhaseDeadline};
 use crate::cell::Cell;
 use crate::control::{BeltDrive, GripperDrive, HoldMonitor, TrajectoryFollower};
-use crate::kinematics::{AnalyticIk, JointVector};
-use crate::outcome::{Failure, FailureReason, Misidentification, TrialTiming, fail};
+use crate::kinematics::{AnalyticIk, ArmModel, JointVector};
+use crate::outcome::{Failure, FailureReason, Misidentification, MotionRecord, TrialTiming, fail};
 use crate::planning::{JointTrajectory, PickPlanner, capture_robot_shapes, scenery_obstacles};
 use crate::rng::SimRng;
 use crate::scenario::Scenario;
@@ -23,8 +23,6 @@ use crate::sim::Tag;
 
 /// A robot collider this close to a bottle counts as touching it, m.
 const TOUCH_DISTANCE_M: f64 = 0.0005;
-/// Settle after a trajectory's last sample before the next phase, s.
-const TRAJECTORY_SETTLE_S: f64 = 0.15;
 
 /// A trial in progress: the cell, the drives, the monitors, and where the task has got to.
 pub(crate) struct Trial<'a> {
@@ -58,6 +56,10 @@ pub(crate) struct Trial<'a> {
     pub(crate) pick_time_s: Option<f64>,
     /// The item at the photo-eye the camera took for something else, when it did.
     pub(crate) misidentified: Option<Misidentification>,
+    /// How the arm has moved so far, as measured in the physics.
+    pub(crate) motion: MotionRecord,
+    /// The joint angles measured after the last step, rad.
+    measured_q: JointVector,
     observer: ObserverSlot<'a>,
 }
 
@@ -89,6 +91,11 @@ impl<'a> Trial<'a> {
             home_q_rad: home,
         };
         let feeder = Feeder::new(scenario, rng);
+        let measured_q = cell.arm.joint_positions(&cell.world);
+        let motion = MotionRecord {
+            joint_limit_margin_rad: limit_margin_rad(&planner.model, &measured_q),
+            ..MotionRecord::default()
+        };
         let bottle_rest = vec![None; cell.items.bottles().len()];
         Self {
             scenario,
@@ -109,6 +116,8 @@ impl<'a> Trial<'a> {
             q: home,
             pick_time_s: None,
             misidentified: None,
+            motion,
+            measured_q,
             observer: ObserverSlot::default(),
             cell,
         }
@@ -204,32 +213,46 @@ impl<'a> Trial<'a> {
         Ok(self.world_from_tcp().inverse() * world_from_part)
     }
 
-    /// Plays a trajectory to the end plus a short settle as `phase`, watching a held part with
-    /// `hold`, and the bottles.
+    /// Plays `trajectory` from `from_s` to `to_s` seconds along it as `phase`, then holds its
+    /// last sample for `settle_s`, watching a held part with `hold`, and the bottles. Phases
+    /// that share a blended trajectory each play their own span of it, without a stop between.
     pub(crate) fn execute(
         &mut self,
         phase: Phase,
         trajectory: &JointTrajectory,
+        (from_s, to_s): (f64, f64),
+        settle_s: f64,
         hold: Option<&HoldMonitor>,
     ) -> Result<(), Failure> {
         self.phase = phase;
-        let follower = TrajectoryFollower::new(trajectory.clone(), self.cell.world.time_s());
-        let end = self.cell.world.time_s() + trajectory.duration_s() + TRAJECTORY_SETTLE_S;
-        while self.cell.world.time_s() < end {
-            if let Some(sample) = follower.update(&mut self.cell.world, &self.cell.arm) {
-                self.q = sample.q;
+        let follower = TrajectoryFollower::new(trajectory.clone(), 0.0);
+        // Each command aims at the end of the coming step; the span's last one at `to_s`
+        // exactly, so that the next span starts where this one stopped.
+        let dt = self.cell.world.params().dt_s;
+        let span_s = (to_s - from_s).max(0.0);
+        let steps = (span_s / dt - 1e-9).ceil().max(0.0) as usize;
+        let settle_steps = (settle_s / dt - 1e-9).ceil().max(0.0) as usize;
+        for step in 0..steps + settle_steps {
+            if step < steps {
+                let t_s = from_s + (dt * (step + 1) as f64).min(span_s);
+                if let Some(sample) = follower.command_at(&mut self.cell.world, &self.cell.arm, t_s)
+                {
+                    self.q = sample.q;
+                }
+            } else {
+                self.hold();
             }
             self.step_physics()?;
             if let Some(hold) = hold {
                 // Lowered into the bin, a part that meets the floor is placed, not slipping.
                 let placed = phase == Phase::Place && self.bin_holding_part().is_some();
                 if !placed {
-                    hold.check(phase.as_str(), &self.tcp_from_part()?)?;
+                    let tcp_from_part = self.tcp_from_part()?;
+                    let drift_mm = hold.drift_m(&tcp_from_part) * 1e3;
+                    self.motion.grip_drift_mm = self.motion.grip_drift_mm.max(drift_mm);
+                    hold.check(phase.as_str(), &tcp_from_part)?;
                 }
             }
-        }
-        if let Some(q) = trajectory.end() {
-            self.q = q;
         }
         Ok(())
     }
@@ -271,6 +294,7 @@ impl<'a> Trial<'a> {
         let started = Instant::now();
         self.cell.world.step_with_hooks(&self.cell.conveyor);
         self.timing.physics_ms += started.elapsed().as_secs_f64() * 1e3;
+        self.measure_motion(dt);
         self.observe(|slot, view| slot.step(view));
         let time_s = self.cell.world.time_s();
         if time_s > self.scenario.task.trial_timeout_s {
@@ -298,6 +322,24 @@ impl<'a> Trial<'a> {
             self.touch_phase = Some(self.phase);
         }
         Ok(())
+    }
+
+    /// Books the step's simulated time to the phase, and checks the joints as measured.
+    fn measure_motion(&mut self, dt_s: f64) {
+        *self.phase.seconds_in(&mut self.motion.phase_s) += dt_s;
+        let q = self.cell.arm.joint_positions(&self.cell.world);
+        let motion = &mut self.motion;
+        for (j, limit) in self.planner.model.limits.iter().enumerate() {
+            let speed = (q[j] - self.measured_q[j]).abs() / dt_s;
+            motion.joint_speed_ratio = motion
+                .joint_speed_ratio
+                .max(speed / limit.max_velocity_rad_s);
+            motion.tracking_error_rad = motion.tracking_error_rad.max((q[j] - self.q[j]).abs());
+        }
+        motion.joint_limit_margin_rad = motion
+            .joint_limit_margin_rad
+            .min(limit_margin_rad(&self.planner.model, &q));
+        self.measured_q = q;
     }
 
     fn robot_touches_bottle(&self) -> bool {
@@ -378,4 +420,14 @@ impl<'a> Trial<'a> {
                 now.translation.z - rest.translation.z > 0.02
             })
     }
+}
+
+/// The smallest distance of any joint of `q` from its position limits, rad (negative past one).
+fn limit_margin_rad(model: &ArmModel, q: &JointVector) -> f64 {
+    model
+        .limits
+        .iter()
+        .zip(q)
+        .map(|(limit, &value)| (value - limit.min_rad).min(limit.max_rad - value))
+        .fold(f64::INFINITY, f64::min)
 }

@@ -1,0 +1,169 @@
+use super::*;
+use crate::rng::SimRng;
+
+/// Random joint vectors within the arm's position limits.
+fn random_q(rng: &mut SimRng, arm: &ArmModel) -> JointVector {
+    std::array::from_fn(|j| rng.range(arm.limits[j].min_rad, arm.limits[j].max_rad))
+}
+
+/// Samples `trajectory` finely; checks every joint's velocity and acceleration against the
+/// limits scaled by `fraction`, and that velocity is continuous (it changes by no more than the
+/// acceleration limit allows between samples). Returns the largest velocity and acceleration
+/// as shares of their limits.
+fn check_limits(arm: &ArmModel, trajectory: &JointTrajectory, fraction: f64) -> (f64, f64) {
+    let duration = trajectory.duration_s();
+    let n = 20_000;
+    let dt = duration / f64::from(n);
+    let (mut v_share, mut a_share) = (0.0f64, 0.0f64);
+    let mut previous = trajectory.sample(0.0).expect("non-empty");
+    assert_eq!(previous.qd, [0.0; DOF]);
+    for i in 1..=n {
+        let now = trajectory.sample(dt * f64::from(i)).expect("non-empty");
+        for (j, limit) in arm.limits.iter().enumerate() {
+            let v_max = limit.max_velocity_rad_s * fraction;
+            let a_max = limit.max_accel_rad_s2 * fraction;
+            v_share = v_share.max(now.qd[j].abs() / v_max);
+            a_share = a_share.max(now.qdd[j].abs() / a_max);
+            assert!(now.qd[j].abs() <= v_max * (1.0 + 1e-9), "joint {j} {now:?}");
+            assert!(
+                now.qdd[j].abs() <= a_max * (1.0 + 1e-9),
+                "joint {j} {now:?}"
+            );
+            let jump = (now.qd[j] - previous.qd[j]).abs();
+            assert!(
+                jump <= a_max * dt * (1.0 + 1e-6) + 1e-12,
+                "joint {j} jumps {jump}"
+            );
+            // Position follows the velocity (trapezoidal integration, exact up to the jerk).
+            let mean = 0.5 * (now.qd[j] + previous.qd[j]);
+            let moved = now.q[j] - previous.q[j];
+            assert!(
+                (moved - mean * dt).abs() <= a_max * dt * dt + 1e-12,
+                "joint {j}"
+            );
+        }
+        previous = now;
+    }
+    (v_share, a_share)
+}
+
+#[test]
+fn random_waypoints_stop_at_each_within_the_limits() {
+    let arm = ArmModel::aubo_i5();
+    let mut rng = SimRng::new(11);
+    for _ in 0..20 {
+        let count = 2 + (rng.next_u64() % 3) as usize;
+        let waypoints: Vec<JointVector> = (0..count).map(|_| random_q(&mut rng, &arm)).collect();
+        let fraction = rng.range(0.2, 1.0);
+        let trajectory = JointTrajectory::through(&arm, &waypoints, fraction);
+        let (v, a) = check_limits(&arm, &trajectory, fraction);
+        // Time-optimal: the binding joint reaches a limit.
+        assert!(v > 0.999 || a > 0.999, "{v} {a}");
+        // At rest exactly at every waypoint.
+        for (k, start) in trajectory.part_starts_s().iter().enumerate() {
+            let at = trajectory.sample(*start).expect("non-empty");
+            assert_eq!(at.q, waypoints[k]);
+            assert_eq!(at.qd, [0.0; DOF]);
+        }
+        let end = trajectory
+            .sample(trajectory.duration_s())
+            .expect("non-empty");
+        assert_eq!(end.q, waypoints[count - 1]);
+        assert_eq!(end.qd, [0.0; DOF]);
+        let after = trajectory
+            .sample(trajectory.duration_s() + 1.0)
+            .expect("non-empty");
+        assert_eq!(after.q, waypoints[count - 1]);
+    }
+}
+
+#[test]
+fn random_blends_are_continuous_within_the_limits_and_faster() {
+    let arm = ArmModel::aubo_i5();
+    let mut rng = SimRng::new(12);
+    for _ in 0..20 {
+        let count = 3 + (rng.next_u64() % 3) as usize;
+        let waypoints: Vec<JointVector> = (0..count).map(|_| random_q(&mut rng, &arm)).collect();
+        let parts = || {
+            waypoints
+                .windows(2)
+                .map(|pair| JointTrajectory::along(&arm, vec![pair[0], pair[1]], 1.0))
+                .collect::<Vec<_>>()
+        };
+        let stopping = JointTrajectory::join(parts(), false);
+        let blended = JointTrajectory::join(parts(), true);
+        check_limits(&arm, &blended, 1.0);
+        let start = blended.sample(0.0).expect("non-empty");
+        assert_eq!(start.q, waypoints[0]);
+        let end = blended.sample(blended.duration_s()).expect("non-empty");
+        assert_eq!(end.q, waypoints[count - 1]);
+        assert_eq!(end.qd, [0.0; DOF]);
+        // The arm does not stop at a junction.
+        for start in &blended.part_starts_s()[1..] {
+            let at = blended.sample(*start + 1e-6).expect("non-empty");
+            assert!(at.qd.iter().any(|v| v.abs() > 1e-3), "stopped at {start}");
+        }
+        assert!(blended.duration_s() < stopping.duration_s());
+    }
+}
+
+#[test]
+fn a_dense_straight_path_keeps_its_samples_and_limits() {
+    let arm = ArmModel::aubo_i5();
+    let mut rng = SimRng::new(13);
+    for _ in 0..10 {
+        let (a, b) = (random_q(&mut rng, &arm), random_q(&mut rng, &arm));
+        let n = 40;
+        let path: Vec<JointVector> = (0..=n)
+            .map(|i| std::array::from_fn(|j| a[j] + (b[j] - a[j]) * f64::from(i) / f64::from(n)))
+            .collect();
+        let trajectory = JointTrajectory::along(&arm, path.clone(), 1.0);
+        check_limits(&arm, &trajectory, 1.0);
+        let end = trajectory
+            .sample(trajectory.duration_s())
+            .expect("non-empty");
+        assert_eq!(Some(end.q), path.last().copied());
+        // The sample path lies on the polyline: each sample is between its neighbours.
+        for i in 0..=50 {
+            let t = trajectory.duration_s() * f64::from(i) / 50.0;
+            let q = trajectory.sample(t).expect("non-empty").q;
+            let u = (q[0] - a[0]) / (b[0] - a[0]);
+            for j in 1..DOF {
+                assert!((q[j] - (a[j] + (b[j] - a[j]) * u)).abs() < 1e-9);
+            }
+        }
+    }
+}
+
+#[test]
+fn tool_limits_slow_the_whole_path_down() {
+    let arm = ArmModel::aubo_i5().with_tool(nalgebra::Isometry3::translation(0.0, 0.0, 0.125));
+    let mut rng = SimRng::new(14);
+    for _ in 0..10 {
+        let (a, b) = (random_q(&mut rng, &arm), random_q(&mut rng, &arm));
+        let fast = JointTrajectory::through(&arm, &[a, b], 1.0);
+        let limits = ToolLimits {
+            speed_m_s: 0.5,
+            accel_m_s2: 3.0,
+        };
+        let slow = fast.clone().within_tool_limits(&arm, &limits);
+        let (speed, accel) = slow.peak_tool_motion(&arm);
+        assert!(speed <= limits.speed_m_s * 1.01, "{speed}");
+        assert!(accel <= limits.accel_m_s2 * 1.01, "{accel}");
+        assert!(slow.duration_s() >= fast.duration_s());
+        assert_eq!(slow.end(), Some(b));
+        // A speed cap alone lowers the cruise rate and keeps the ramps: within the limits, at
+        // least as fast as the uniform slow-down, and still within the joints' own limits.
+        let speed_only = ToolLimits {
+            speed_m_s: 0.5,
+            accel_m_s2: 1e3,
+        };
+        let capped = fast.clone().with_tool_limits(&arm, &speed_only);
+        let (speed, _) = capped.peak_tool_motion(&arm);
+        assert!(speed <= speed_only.speed_m_s * 1.01, "{speed}");
+        let uniform = fast.clone().within_tool_limits(&arm, &speed_only);
+        assert!(capped.duration_s() <= uniform.duration_s() + 1e-9);
+        assert_eq!(capped.end(), Some(b));
+        check_limits(&arm, &capped, 1.0);
+    }
+}

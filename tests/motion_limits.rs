@@ -1,0 +1,91 @@
+//! The arm at its real pace stays within its published limits, as the physics measures it: every
+//! trial of paper_50 (seed 731, oracle perception so that the test needs no renderer), with the
+//! joint speeds taken from the simulated joint angles step by step, not from the plan.
+
+use std::path::Path;
+
+use twincell::batch::{Outcome, Perception, TrialRecord, TrialRunner, trial_seed};
+use twincell::scenario::Scenario;
+use twincell::task::CellTrialRunner;
+
+/// Largest drift of a part in the jaws over a carry, mm.
+const MAX_GRIP_DRIFT_MM: f64 = 5.0;
+/// Largest mean simulated cycle, s (7.5 parts a minute).
+const MAX_MEAN_CYCLE_S: f64 = 8.0;
+
+fn all_trials() -> (Scenario, Vec<TrialRecord>) {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/paper_50.toml");
+    let scenario = Scenario::load(&path).expect("paper_50 loads");
+    let runner =
+        CellTrialRunner::new(scenario.clone(), &path, Perception::Oracle).expect("runner builds");
+    let (runner, seed) = (&runner, scenario.seed);
+    let mut records: Vec<TrialRecord> = std::thread::scope(|scope| {
+        let workers: Vec<_> = (0..2u32)
+            .map(|worker| {
+                scope.spawn(move || {
+                    (0..scenario.trials)
+                        .filter(|i| i % 2 == worker)
+                        .map(|i| runner.run_trial(i, trial_seed(seed, i)))
+                        .collect::<Vec<_>>()
+                })
+            })
+            .collect();
+        workers
+            .into_iter()
+            .flat_map(|w| w.join().expect("worker finishes"))
+            .collect()
+    });
+    records.sort_by_key(|r| r.trial);
+    (scenario, records)
+}
+
+#[test]
+fn every_trial_keeps_the_joints_within_their_limits_and_the_part_in_the_jaws() {
+    let (scenario, records) = all_trials();
+    assert_eq!(records.len(), scenario.trials as usize);
+    let mut fastest = 0.0f64;
+    for record in &records {
+        let m = &record.motion;
+        assert_eq!(
+            record.outcome,
+            Outcome::Success,
+            "trial {}: {:?}",
+            record.trial,
+            record.detail
+        );
+        assert!(
+            m.joint_speed_ratio <= 1.0,
+            "trial {}: a joint ran at {:.3} of its velocity limit",
+            record.trial,
+            m.joint_speed_ratio
+        );
+        assert!(
+            m.joint_limit_margin_rad >= 0.0,
+            "trial {}: a joint went {:.4} rad past its position limit",
+            record.trial,
+            -m.joint_limit_margin_rad
+        );
+        assert!(
+            m.grip_drift_mm <= MAX_GRIP_DRIFT_MM,
+            "trial {}: the part drifted {:.2} mm in the jaws",
+            record.trial,
+            m.grip_drift_mm
+        );
+        // The phases account for every simulated second of the trial.
+        let booked: f64 = m.phase_s.named().iter().map(|(_, s)| s).sum();
+        assert!(
+            (booked - record.sim_time_s).abs() < 1e-6,
+            "trial {}: phases {booked} s of {} s",
+            record.trial,
+            record.sim_time_s
+        );
+        fastest = fastest.max(m.joint_speed_ratio);
+    }
+    // The arm does work near its limits: the check above is not passed by a crawling arm.
+    assert!(fastest > 0.8, "fastest joint at {fastest:.2} of its limit");
+    let mean_cycle_s = records.iter().map(|r| r.cycle_time_s).sum::<f64>() / records.len() as f64;
+    assert!(
+        mean_cycle_s <= MAX_MEAN_CYCLE_S,
+        "mean cycle {mean_cycle_s:.2} s"
+    );
+}
