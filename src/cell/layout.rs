@@ -12,8 +12,8 @@ use crate::math::pose_to_physics;
 use crate::rng::SimRng;
 use crate::scenario::Scenario;
 use crate::sim::{
-    BottlePlacement, ConveyorHooks, ItemSet, PartInstance, SimArm, SimError, Tag, World,
-    WorldParams, body_pose, groups,
+    BELT_ACCEL_M_S2, BottlePlacement, ConveyorHooks, ItemSet, PartInstance, SimArm, SimError, Tag,
+    World, WorldParams, body_pose, groups,
 };
 
 /// Why a cell could not be built.
@@ -64,6 +64,9 @@ pub struct Cell {
     pub conveyor: ConveyorHooks,
     /// The photo-eye's sensor collider.
     pub photo_eye: ColliderHandle,
+    /// The slow-down zone's sensor collider, just upstream of the photo-eye, when the belt runs
+    /// faster than its creep speed (`ConveyorSection::slow_zone_m`).
+    pub slow_zone: Option<ColliderHandle>,
     /// Every part and bottle in the world: the trial's first part (index 0) and bottles, then
     /// whatever a stream's feeder adds.
     pub items: ItemSet,
@@ -223,6 +226,20 @@ impl Cell {
             eye_body,
             &mut physics.bodies,
         );
+        // The slow-down zone: the belt ahead of the beam, as high as the beam, as long as the
+        // drive needs to brake from the belt's speed to its creep speed.
+        let zone_m = belt.slow_zone_m(BELT_ACCEL_M_S2);
+        let slow_zone = (zone_m > 0.0).then(|| {
+            physics.colliders.insert_with_parent(
+                ColliderBuilder::cuboid(zone_m as f32 / 2.0, belt.width_m as f32 / 2.0, 0.02)
+                    .translation(Vector::new(-(0.002 + zone_m as f32 / 2.0), 0.0, 0.0))
+                    .sensor(true)
+                    .collision_groups(groups::photo_eye())
+                    .user_data(Tag::PhotoEye.bits()),
+                eye_body,
+                &mut physics.bodies,
+            )
+        });
         if let Some(collider) = physics.colliders.get_mut(belt_collider) {
             collider.set_active_hooks(ActiveHooks::MODIFY_SOLVER_CONTACTS);
         }
@@ -303,6 +320,7 @@ impl Cell {
             arm,
             conveyor: ConveyorHooks::new(belt_collider),
             photo_eye,
+            slow_zone,
             items,
             bins,
             scenery,
@@ -376,6 +394,17 @@ impl Cell {
         bodies.sort_by_key(|h| h.into_raw_parts());
         bodies.dedup();
         bodies
+    }
+
+    /// Whether anything is in the slow-down zone ahead of the photo-eye (never, without one).
+    pub fn slow_zone_occupied(&self) -> bool {
+        self.slow_zone.is_some_and(|zone| {
+            self.world
+                .physics
+                .narrow_phase
+                .intersection_pairs_with(zone)
+                .any(|(_, _, intersecting)| intersecting)
+        })
     }
 
     /// Whether the photo-eye's beam is broken by any body.

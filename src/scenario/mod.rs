@@ -196,12 +196,29 @@ pub struct ConveyorSection {
     pub width_m: f64,
     /// Belt surface speed, m/s.
     pub speed_m_s: f64,
+    /// The speed the belt slows to before an item reaches the photo-eye, m/s. When `speed_m_s`
+    /// is higher, a slow-down zone upstream of the eye (long enough to brake from the one to
+    /// the other) drops the belt to this speed, so an item stops just past the beam instead of
+    /// running through it; at or below it the belt runs at `speed_m_s` to the eye.
+    pub creep_speed_m_s: f64,
     /// x of the photo-eye beam (the pick station), m.
     pub photo_eye_x_m: f64,
     /// How far upstream of the photo-eye parts are placed, m.
     pub spawn_upstream_m: f64,
     /// Belt friction coefficient.
     pub friction: f64,
+}
+
+impl ConveyorSection {
+    /// Length of the slow-down zone that ends at the photo-eye, m: the distance in which a
+    /// drive ramping at `accel_m_s2` brings the belt from `speed_m_s` down to
+    /// `creep_speed_m_s`, plus 10 mm; 0 (no zone) when the belt runs no faster than the creep.
+    pub fn slow_zone_m(&self, accel_m_s2: f64) -> f64 {
+        if self.speed_m_s <= self.creep_speed_m_s {
+            return 0.0;
+        }
+        (self.speed_m_s.powi(2) - self.creep_speed_m_s.powi(2)) / (2.0 * accel_m_s2) + 0.01
+    }
 }
 
 impl Default for ConveyorSection {
@@ -211,6 +228,7 @@ impl Default for ConveyorSection {
             length_m: 1.6,
             width_m: 0.32,
             speed_m_s: 0.25,
+            creep_speed_m_s: 0.25,
             photo_eye_x_m: 0.05,
             spawn_upstream_m: 0.3,
             friction: 0.8,

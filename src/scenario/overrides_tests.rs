@@ -107,7 +107,7 @@ fn later_overrides_win() {
 
 #[test]
 fn a_bad_override_names_the_file_the_key_and_the_reason() {
-    let cases: [(&[&str], &str, &str); 7] = [
+    let cases: [(&[&str], &str, &str); 8] = [
         (
             &["sensor.noise_sigmaa=1"],
             "sensor.noise_sigmaa",
@@ -119,6 +119,11 @@ fn a_bad_override_names_the_file_the_key_and_the_reason() {
             "invalid type",
         ),
         (&["conveyor.speed_m_s=-1"], "conveyor.speed_m_s", "positive"),
+        (
+            &["conveyor.creep_speed_m_s=0"],
+            "conveyor.creep_speed_m_s",
+            "positive",
+        ),
         (
             &[
                 "conveyor.speed_m_s=0.3",

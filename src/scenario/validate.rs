@@ -377,6 +377,11 @@ impl Scenario {
         c.positive_up_to("conveyor.length_m", belt.length_m, 50.0)?;
         c.positive_up_to("conveyor.width_m", belt.width_m, 2.0)?;
         c.positive_up_to("conveyor.speed_m_s", belt.speed_m_s, MAX_BELT_SPEED_M_S)?;
+        c.positive_up_to(
+            "conveyor.creep_speed_m_s",
+            belt.creep_speed_m_s,
+            MAX_BELT_SPEED_M_S,
+        )?;
         c.positive_up_to("conveyor.friction", belt.friction, MAX_FRICTION)?;
         c.positive_up_to("conveyor.spawn_upstream_m", belt.spawn_upstream_m, 50.0)?;
         let half = belt.length_m / 2.0;

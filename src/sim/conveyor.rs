@@ -4,6 +4,9 @@ use std::sync::atomic::{AtomicU32, Ordering};
 
 use rapier3d::prelude::*;
 
+/// The belt drive's ramp, m/s^2: gentle enough that a standing bottle does not tip.
+pub const BELT_ACCEL_M_S2: f64 = 1.0;
+
 /// Physics hooks that make the belt collider's contacts move things along +x.
 ///
 /// The belt is a fixed body; the solver sees its contacts with a tangent velocity, so parts are

@@ -12,7 +12,7 @@ mod urdf_graph;
 mod world;
 
 pub use arm::{ARM_JOINTS, ArmGains, FINGER_JOINTS, FINGER_LINKS, JAW_SPEED_M_S, SimArm};
-pub use conveyor::ConveyorHooks;
+pub use conveyor::{BELT_ACCEL_M_S2, ConveyorHooks};
 pub use error::SimError;
 pub use items::{BottleItem, BottlePlacement, ItemSet, PartItem, body_pose};
 pub use part::{BoreForm, PartInstance};

@@ -104,7 +104,7 @@ impl<'a> Trial<'a> {
             shots: 0,
             planner,
             timing: TrialTiming::default(),
-            belt: BeltDrive::default(),
+            belt: BeltDrive::with_creep(scenario.conveyor.creep_speed_m_s),
             gripper: GripperDrive::new(cell.finger_reference_m, scenario.gripper.grip_force_n),
             current: 0,
             bottle_rest,
@@ -282,6 +282,7 @@ impl<'a> Trial<'a> {
     /// the time-out, blow-up and bottle-contact monitors.
     fn step_physics(&mut self) -> Result<(), Failure> {
         let dt = self.cell.world.params().dt_s;
+        self.belt.set_zone_occupied(self.cell.slow_zone_occupied());
         let travel_m = self.belt.advance(&self.cell.conveyor, dt);
         self.feeder.advance(
             travel_m,
