@@ -10,13 +10,16 @@ use crate::scenario::PhysicsSection;
 /// the belt or in a bin, or riding it.
 ///
 /// Each substep recomputes the arm's multibody mass matrix, its LU factors and the joint
-/// motors' constraints: two thirds of a free step's instructions at 4 substeps (callgrind). A
-/// free arm's servos (1000 rad/s, critically damped, integrated implicitly by rapier) track as
-/// well in one substep, and parts and bottles resting on the belt or in a bin need no more. As
-/// soon as a finger comes within the margin of a part, the scenario's count is back for the
-/// whole step.
+/// motors' constraints: two thirds of a free step's instructions at 4 substeps (callgrind).
+/// Parts and bottles resting on the belt or in a bin need no more than one; the arm's servos
+/// (1000 rad/s, critically damped, integrated implicitly by rapier) need two once it moves at
+/// its published limits: with one, a joint ending an acceleration ramp overshot its velocity
+/// limit by up to 20 % (measured joint speed over 50 trials of paper_50 in camera mode, seeds
+/// 731 and 1-5), with two by up to 2 % at 0.92 of the limits and not at all at 0.9 (the
+/// scenario default). As soon as a finger comes within the margin of a part, the scenario's
+/// count is back for the whole step.
 /// Measured: docs/speed.md.
-pub const FREE_SOLVER_ITERATIONS: usize = 1;
+pub const FREE_SOLVER_ITERATIONS: usize = 2;
 
 /// How near (m) a robot collider's nearest contact point with a moving body must be for the
 /// step to get the scenario's solver substeps. Rapier predicts contacts 2 cm out; counting
