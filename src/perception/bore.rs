@@ -156,10 +156,9 @@ impl Default for BoreDetectorParams {
             edge_scale_floor_px: 0.03,
             min_clean_share: 0.4,
             max_upr: DEFAULT_MAX_UPR,
-            // A ray per two pixels of circumference: neighbouring pixels of the 3x3-median
-            // image share most of their samples, so a ray per pixel read little new; 128 rays
-            // keep the smallest bores' cleaning and 15-undulation filter well fed, 360 (a degree
-            // apart) is 24 rays per undulation at the filter's cutoff.
+            // A ray per two pixels of circumference, 128 to 360: half the rays' time and a
+            // roundness about 20 % noisier than a ray per pixel, 180 to 720 (docs/measure.md;
+            // `1.0` and `[180, 720]` give that output bit for bit).
             ray_spacing_px: 2.0,
             ray_range: [128, 360],
             rays: RayParams::default(),
