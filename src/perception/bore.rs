@@ -114,6 +114,10 @@ pub struct BoreDetectorParams {
     pub min_clean_share: f64,
     /// Roundness profile cutoff, undulations per revolution.
     pub max_upr: usize,
+    /// Rays per bore: one per this many pixels of the coarse circumference, within `ray_range`.
+    pub ray_spacing_px: f64,
+    /// Fewest and most rays per bore.
+    pub ray_range: [usize; 2],
     /// Ray sampling.
     pub rays: RayParams,
 }
@@ -152,6 +156,11 @@ impl Default for BoreDetectorParams {
             edge_scale_floor_px: 0.03,
             min_clean_share: 0.4,
             max_upr: DEFAULT_MAX_UPR,
+            // A ray per two pixels of circumference, 128 to 360: half the rays' time and a
+            // roundness about 20 % noisier than a ray per pixel, 180 to 720 (docs/measure.md;
+            // `1.0` and `[180, 720]` give that output bit for bit).
+            ray_spacing_px: 2.0,
+            ray_range: [128, 360],
             rays: RayParams::default(),
         }
     }
@@ -401,9 +410,9 @@ impl BoreDetector {
         {
             return None;
         }
-        // About a ray per pixel of circumference, at most 720 (a quarter degree apart: plenty
-        // for a profile filtered to 15 undulations, and every ray costs).
-        let ray_count = ((TAU * coarse.radius).round() as usize).clamp(180, 720);
+        let [fewest, most] = p.ray_range;
+        let ray_count = ((TAU * coarse.radius / p.ray_spacing_px).round() as usize)
+            .clamp(fewest, most.max(fewest));
         let coarse_radii = binned_radii(&border, coarse.centre, ray_count, coarse.radius);
         let rays: Vec<RayDir> = (0..ray_count)
             .map(|i| RayDir::new(TAU * i as f64 / ray_count as f64))
