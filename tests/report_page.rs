@@ -67,10 +67,13 @@ fn records(dir: &Path) -> Vec<Value> {
         .collect()
 }
 
+/// The override that takes fast_belt's slow-down zone away: the creep at the belt's speed.
+const NO_ZONE: &str = "conveyor.creep_speed_m_s=0.5";
+
 #[test]
 fn failed_trials_frames_are_saved_the_same_on_any_jobs_shards_and_resume() {
-    // fast_belt fails every trial quickly in camera mode: the belt cannot stop before the
-    // photo-eye (docs/suite.md).
+    // fast_belt without its slow-down zone (the creep at the belt's own 0.5 m/s) fails every
+    // trial quickly in camera mode: the belt cannot stop before the photo-eye (docs/suite.md).
     let fast = scenario("fast_belt");
     let one = out_dir("jobs1");
     // A stale frame from an earlier batch in the directory must not survive a fresh run.
@@ -79,6 +82,8 @@ fn failed_trials_frames_are_saved_the_same_on_any_jobs_shards_and_resume() {
     run(&[
         "run",
         &fast,
+        "--set",
+        NO_ZONE,
         "--trials",
         "3",
         "--jobs",
@@ -94,7 +99,7 @@ fn failed_trials_frames_are_saved_the_same_on_any_jobs_shards_and_resume() {
         .count();
     assert_eq!(
         failed, 3,
-        "fast_belt no longer fails: pick another scenario"
+        "fast_belt without its zone no longer fails: pick another scenario"
     );
     assert_eq!(
         names,
@@ -111,6 +116,8 @@ fn failed_trials_frames_are_saved_the_same_on_any_jobs_shards_and_resume() {
     run(&[
         "run",
         &fast,
+        "--set",
+        NO_ZONE,
         "--trials",
         "3",
         "--jobs",
@@ -124,6 +131,8 @@ fn failed_trials_frames_are_saved_the_same_on_any_jobs_shards_and_resume() {
     run(&[
         "run",
         &fast,
+        "--set",
+        NO_ZONE,
         "--trials",
         "3",
         "--shard",
@@ -134,6 +143,8 @@ fn failed_trials_frames_are_saved_the_same_on_any_jobs_shards_and_resume() {
     run(&[
         "run",
         &fast,
+        "--set",
+        NO_ZONE,
         "--trials",
         "3",
         "--shard",
@@ -152,6 +163,8 @@ fn failed_trials_frames_are_saved_the_same_on_any_jobs_shards_and_resume() {
     run(&[
         "run",
         &fast,
+        "--set",
+        NO_ZONE,
         "--trials",
         "3",
         "--jobs",
@@ -168,7 +181,16 @@ fn failed_trials_frames_are_saved_the_same_on_any_jobs_shards_and_resume() {
     for name in ["trial-0001.jpg", "trial-0002.jpg"] {
         fs::remove_file(resumed.join("images").join(name)).expect("frame");
     }
-    run(&["run", &fast, "--trials", "3", "--resume", s(&resumed)]);
+    run(&[
+        "run",
+        &fast,
+        "--set",
+        NO_ZONE,
+        "--trials",
+        "3",
+        "--resume",
+        s(&resumed),
+    ]);
     assert_eq!(images(&resumed), frames, "resume lost or changed frames");
 }
 
@@ -178,6 +200,8 @@ fn oracle_pages_say_there_is_no_camera_image() {
     run(&[
         "run",
         &scenario("fast_belt"),
+        "--set",
+        NO_ZONE,
         "--trials",
         "2",
         "--perception",
@@ -227,14 +251,15 @@ fn load_in_chromium(page: &Path, screenshot: &Path) -> Value {
 
 #[test]
 fn the_page_loads_in_headless_chromium_with_every_plot_and_frame_drawn() {
-    // Four trials of clutter_close on its seed: three sorted, trial 3 refused by the planner
-    // (a finger would hit the bottle), so the page has decisions, a failure and its frame.
+    // Five trials of clutter (2-3 bottles, one 0-10 mm from the part) on its seed: trials 0-3
+    // refused by the planner (no grasp clear of the bottles), trial 4 sorted, so the page has
+    // decisions, failures and their frames.
     let dir = out_dir("browser");
     run(&[
         "run",
-        &scenario("clutter_close"),
+        &scenario("clutter"),
         "--trials",
-        "4",
+        "5",
         "--jobs",
         "2",
         "--out",
