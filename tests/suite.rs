@@ -250,7 +250,9 @@ fn a_suite_runs_every_scenario_file_with_its_gate_per_scenario() {
 
 #[test]
 fn a_scenario_files_gate_applies_unless_min_success_replaces_it() {
-    // fast_belt fails every trial (the belt cannot stop before the photo-eye), fast in oracle mode.
+    // fast_belt without its slow-down zone (the creep at the belt's own 0.5 m/s) fails every
+    // trial (the belt cannot stop before the photo-eye), fast in oracle mode.
+    let no_zone = "conveyor.creep_speed_m_s=0.5";
     let fast = concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/scenarios/suite/fast_belt.toml"
@@ -260,6 +262,8 @@ fn a_scenario_files_gate_applies_unless_min_success_replaces_it() {
     let base = [
         "run",
         fast,
+        "--set",
+        no_zone,
         "--perception",
         "oracle",
         "--trials",
@@ -277,7 +281,25 @@ fn a_scenario_files_gate_applies_unless_min_success_replaces_it() {
         "--min-success 0 replaces the file's gate"
     );
     assert_eq!(report(&dir)["gate"]["min_success"], 0.0);
-    assert_eq!(run_ok(&base), 0, "fast_belt's file sets no gate");
+    assert_eq!(
+        run_ok(&base),
+        1,
+        "fast_belt's own gate of 0.15 fails on 0/2"
+    );
+    assert_eq!(report(&dir)["gate"]["min_success"], 0.15);
+    // clutter's file sets no gate: whatever its trial does, the batch passes.
+    let clutter = concat!(env!("CARGO_MANIFEST_DIR"), "/scenarios/suite/clutter.toml");
+    let ungated = [
+        "run",
+        clutter,
+        "--perception",
+        "oracle",
+        "--trials",
+        "1",
+        "--out",
+        out,
+    ];
+    assert_eq!(run_ok(&ungated), 0, "clutter's file sets no gate");
     assert!(report(&dir)["gate"].is_null());
 
     // suite and sweep take each scenario's own gate too.
@@ -291,6 +313,8 @@ fn a_scenario_files_gate_applies_unless_min_success_replaces_it() {
         "1",
         "--set",
         "min_success=0.5,0",
+        "--set",
+        no_zone,
         "--out",
         sweep.to_str().expect("UTF-8"),
     ]);
