@@ -14,7 +14,8 @@ use std::hint::black_box;
 use std::path::Path;
 use std::time::Duration;
 
-use criterion::{Criterion, criterion_group, criterion_main};
+use criterion::measurement::Measurement;
+use criterion::{BenchmarkGroup, Criterion, criterion_group, criterion_main};
 use image::RgbImage;
 use twincell::render::{CameraRig, Exposure, GpuScene, Renderer, RendererOptions, Scene, Shot};
 use twincell::scenario::Scenario;
@@ -72,6 +73,31 @@ fn frame(renderer: &mut Renderer, gpu: &GpuScene, exposure: &Exposure) -> RgbIma
     }
 }
 
+/// The sensor model on a clean `frame` of `shot`: the fast path, and the model's plain
+/// definition, which the fast path is tested against.
+fn sensor_benches<M: Measurement>(
+    group: &mut BenchmarkGroup<'_, M>,
+    shot: &Shot,
+    frame: &RgbImage,
+    (w, h): (u32, u32),
+) {
+    group.bench_function(format!("sensor_effects_{w}x{h}"), |b| {
+        b.iter(|| {
+            let mut image = frame.clone();
+            shot.sensor.apply(&mut image);
+            black_box(image)
+        })
+    });
+    group.bench_function(format!("sensor_effects_reference_{w}x{h}"), |b| {
+        b.iter(|| {
+            let mut image = frame.clone();
+            shot.sensor
+                .apply_window_reference(&mut image, (0, 0), (w, h));
+            black_box(image)
+        })
+    });
+}
+
 fn render_benches(c: &mut Criterion) {
     let scenario = scenario();
     let mut renderer = renderer(4);
@@ -86,22 +112,7 @@ fn render_benches(c: &mut Criterion) {
             b.iter(|| black_box(frame(&mut renderer, &gpu, &shot.exposure)))
         });
         let clean = frame(&mut renderer, &gpu, &shot.exposure);
-        group.bench_function(format!("sensor_effects_{w}x{h}"), |b| {
-            b.iter(|| {
-                let mut image = clean.clone();
-                shot.sensor.apply(&mut image);
-                black_box(image)
-            })
-        });
-        // The model's plain definition, which the fast path above is tested against.
-        group.bench_function(format!("sensor_effects_reference_{w}x{h}"), |b| {
-            b.iter(|| {
-                let mut image = clean.clone();
-                shot.sensor
-                    .apply_window_reference(&mut image, (0, 0), (w, h));
-                black_box(image)
-            })
-        });
+        sensor_benches(&mut group, &shot, &clean, (w, h));
         group.bench_function(format!("upload_{w}x{h}"), |b| {
             b.iter(|| black_box(renderer.upload(&shot.scene)))
         });
@@ -140,21 +151,7 @@ fn cpu_benches(c: &mut Criterion<ProcessCpuTime>) {
         // little of the inflation that other jobs on the machine add to wall time.
         let gpu = msaa.upload(&shot.scene);
         let clean = frame(&mut msaa, &gpu, &shot.exposure);
-        group.bench_function(format!("sensor_effects_{w}x{h}"), |b| {
-            b.iter(|| {
-                let mut image = clean.clone();
-                shot.sensor.apply(&mut image);
-                black_box(image)
-            })
-        });
-        group.bench_function(format!("sensor_effects_reference_{w}x{h}"), |b| {
-            b.iter(|| {
-                let mut image = clean.clone();
-                shot.sensor
-                    .apply_window_reference(&mut image, (0, 0), (w, h));
-                black_box(image)
-            })
-        });
+        sensor_benches(&mut group, &shot, &clean, (w, h));
     }
     group.finish();
 }

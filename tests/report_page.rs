@@ -70,27 +70,24 @@ fn records(dir: &Path) -> Vec<Value> {
 /// The override that takes fast_belt's slow-down zone away: the creep at the belt's speed.
 const NO_ZONE: &str = "conveyor.creep_speed_m_s=0.5";
 
+/// `twincell run` of fast_belt without its slow-down zone, then `args`: every trial fails
+/// quickly, as the belt cannot stop before the photo-eye (docs/suite.md).
+fn run_without_zone(args: &[&str]) -> i32 {
+    let fast = scenario("fast_belt");
+    let mut all = vec!["run", fast.as_str(), "--set", NO_ZONE];
+    all.extend_from_slice(args);
+    run(&all)
+}
+
 #[test]
 fn failed_trials_frames_are_saved_the_same_on_any_jobs_shards_and_resume() {
-    // fast_belt without its slow-down zone (the creep at the belt's own 0.5 m/s) fails every
-    // trial quickly in camera mode: the belt cannot stop before the photo-eye (docs/suite.md).
-    let fast = scenario("fast_belt");
+    // fast_belt without its slow-down zone fails every trial quickly in camera mode
+    // (`run_without_zone`).
     let one = out_dir("jobs1");
     // A stale frame from an earlier batch in the directory must not survive a fresh run.
     fs::create_dir_all(one.join("images")).expect("dir");
     fs::write(one.join("images/trial-0099.jpg"), b"stale").expect("stale");
-    run(&[
-        "run",
-        &fast,
-        "--set",
-        NO_ZONE,
-        "--trials",
-        "3",
-        "--jobs",
-        "1",
-        "--out",
-        s(&one),
-    ]);
+    run_without_zone(&["--trials", "3", "--jobs", "1", "--out", s(&one)]);
     let frames = images(&one);
     let names: Vec<&str> = frames.iter().map(|(n, _)| n.as_str()).collect();
     let failed = records(&one)
@@ -113,45 +110,12 @@ fn failed_trials_frames_are_saved_the_same_on_any_jobs_shards_and_resume() {
     assert_eq!(html.matches("src=\"data:image/jpeg;base64,").count(), 3);
 
     let two = out_dir("jobs2");
-    run(&[
-        "run",
-        &fast,
-        "--set",
-        NO_ZONE,
-        "--trials",
-        "3",
-        "--jobs",
-        "2",
-        "--out",
-        s(&two),
-    ]);
+    run_without_zone(&["--trials", "3", "--jobs", "2", "--out", s(&two)]);
     assert_eq!(images(&two), frames, "frames differ between 1 and 2 jobs");
 
     let (shard0, shard1, merged) = (out_dir("shard0"), out_dir("shard1"), out_dir("merged"));
-    run(&[
-        "run",
-        &fast,
-        "--set",
-        NO_ZONE,
-        "--trials",
-        "3",
-        "--shard",
-        "0/2",
-        "--out",
-        s(&shard0),
-    ]);
-    run(&[
-        "run",
-        &fast,
-        "--set",
-        NO_ZONE,
-        "--trials",
-        "3",
-        "--shard",
-        "1/2",
-        "--out",
-        s(&shard1),
-    ]);
+    run_without_zone(&["--trials", "3", "--shard", "0/2", "--out", s(&shard0)]);
+    run_without_zone(&["--trials", "3", "--shard", "1/2", "--out", s(&shard1)]);
     assert_eq!(images(&shard0).len() + images(&shard1).len(), 3);
     run(&["merge", s(&shard0), s(&shard1), "--out", s(&merged)]);
     assert_eq!(images(&merged), frames, "merge did not carry the frames");
@@ -160,18 +124,7 @@ fn failed_trials_frames_are_saved_the_same_on_any_jobs_shards_and_resume() {
 
     // A batch killed after its first record: its frame stays, the rest are made again.
     let resumed = out_dir("resumed");
-    run(&[
-        "run",
-        &fast,
-        "--set",
-        NO_ZONE,
-        "--trials",
-        "3",
-        "--jobs",
-        "1",
-        "--out",
-        s(&resumed),
-    ]);
+    run_without_zone(&["--trials", "3", "--jobs", "1", "--out", s(&resumed)]);
     let text = fs::read_to_string(resumed.join("trials.jsonl")).expect("records");
     let first = text.split_inclusive('\n').next().expect("a record");
     fs::write(resumed.join("trials.jsonl"), first).expect("truncate");
@@ -181,34 +134,14 @@ fn failed_trials_frames_are_saved_the_same_on_any_jobs_shards_and_resume() {
     for name in ["trial-0001.jpg", "trial-0002.jpg"] {
         fs::remove_file(resumed.join("images").join(name)).expect("frame");
     }
-    run(&[
-        "run",
-        &fast,
-        "--set",
-        NO_ZONE,
-        "--trials",
-        "3",
-        "--resume",
-        s(&resumed),
-    ]);
+    run_without_zone(&["--trials", "3", "--resume", s(&resumed)]);
     assert_eq!(images(&resumed), frames, "resume lost or changed frames");
 }
 
 #[test]
 fn oracle_pages_say_there_is_no_camera_image() {
     let dir = out_dir("oracle");
-    run(&[
-        "run",
-        &scenario("fast_belt"),
-        "--set",
-        NO_ZONE,
-        "--trials",
-        "2",
-        "--perception",
-        "oracle",
-        "--out",
-        s(&dir),
-    ]);
+    run_without_zone(&["--trials", "2", "--perception", "oracle", "--out", s(&dir)]);
     assert!(images(&dir).is_empty());
     let html = fs::read_to_string(dir.join("report.html")).expect("page");
     assert_eq!(

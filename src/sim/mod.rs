@@ -15,6 +15,6 @@ pub use arm::{ARM_JOINTS, ArmGains, FINGER_JOINTS, FINGER_LINKS, JAW_SPEED_M_S, 
 pub use conveyor::{BELT_ACCEL_M_S2, ConveyorHooks};
 pub use error::SimError;
 pub use items::{BottleItem, BottlePlacement, ItemSet, PartItem, body_pose};
-pub use part::{BoreForm, PartInstance};
+pub use part::{BoreForm, PartInstance, tube_mass_kg};
 pub use tag::{Tag, groups};
 pub use world::{CONTACT_MARGIN_M, FREE_SOLVER_ITERATIONS, World, WorldParams};

@@ -87,6 +87,14 @@ pub struct PartInstance {
     pub bore: BoreForm,
 }
 
+/// The mass of a part type's nominal tube (its bore at the nominal diameter), kg.
+pub fn tube_mass_kg(part: &PartType) -> f64 {
+    let outer_radius_m = part.outer_diameter_mm / 2000.0;
+    let bore_radius_m = part.bore_diameter_mm / 2000.0;
+    let area = std::f64::consts::PI * (outer_radius_m.powi(2) - bore_radius_m.powi(2));
+    area * (part.height_mm / 1000.0) * part.density_kg_m3
+}
+
 impl PartInstance {
     /// Draws a part: uniform type, uniform true roundness in [0, max], a random form.
     pub fn draw(scenario: &Scenario, rng: &mut SimRng) -> Self {
@@ -109,13 +117,12 @@ impl PartInstance {
         };
         let outer_radius_m = part.outer_diameter_mm / 2000.0;
         let height_m = part.height_mm / 1000.0;
-        let area = std::f64::consts::PI * (outer_radius_m.powi(2) - nominal_radius_m.powi(2));
         Self {
             type_index,
             type_name: part.name.clone(),
             outer_radius_m,
             height_m,
-            mass_kg: area * height_m * part.density_kg_m3,
+            mass_kg: tube_mass_kg(part),
             bore,
         }
     }

@@ -10,7 +10,7 @@ use super::trial::Trial;
 use crate::control::HoldMonitor;
 use crate::outcome::{DecisionRecord, Failure, FailureReason, PartRecord, fail};
 use crate::planning::{JointTrajectory, Payload, Percept, PickPlan, PlacePlan};
-use crate::sim::JAW_SPEED_M_S;
+use crate::sim::{JAW_SPEED_M_S, tube_mass_kg};
 
 /// Time for the grip force to build once the drive reaches its end, s.
 const GRIP_BUILD_S: f64 = 0.1;
@@ -223,13 +223,7 @@ impl Trial<'_> {
                         * percept.part_height_m
                         * 7850.0
                 },
-                |t| {
-                    let (outer, bore) = (t.outer_diameter_mm / 2e3, t.bore_diameter_mm / 2e3);
-                    std::f64::consts::PI
-                        * (outer * outer - bore * bore)
-                        * (t.height_mm / 1e3)
-                        * t.density_kg_m3
-                },
+                tube_mass_kg,
             );
         Payload {
             mass_kg,
