@@ -18,7 +18,8 @@ pub fn capture_robot_shapes(
     let frames = link_frames(model, q);
     let base_from_world = arm.world_from_base().inverse();
     let mut shapes = Vec::new();
-    for (name, body) in arm.link_bodies() {
+    for link in arm.links() {
+        let name = &link.name;
         let mount = match name.as_str() {
             // The base and shoulder sit on the pedestal by design; they are not checked.
             "shoulder_Link" | "base_link" => continue,
@@ -35,10 +36,10 @@ pub fn capture_robot_shapes(
             LinkMount::Dh(k) => frames[k],
             LinkMount::Finger { .. } => frames[DOF],
         };
-        let Some(rb) = world.physics.bodies.get(*body) else {
+        let Some(rb) = world.physics.bodies.get(link.body) else {
             continue;
         };
-        for handle in rb.colliders() {
+        for handle in &link.colliders {
             let Some(collider) = world.physics.colliders.get(*handle) else {
                 continue;
             };

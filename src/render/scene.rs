@@ -7,7 +7,7 @@
 use std::sync::Arc;
 
 use nalgebra::{Isometry3, Point3, Vector3};
-use rapier3d::prelude::{Collider, RigidBodyHandle};
+use rapier3d::prelude::{Collider, ColliderHandle, RigidBodyHandle};
 
 use super::material::Material;
 use super::mesh::{Mesh, ROUND_SEGMENTS};
@@ -53,15 +53,13 @@ impl Scene {
     /// Reads the cell's bodies as they stand now.
     pub fn from_cell(cell: &Cell, scenario: &Scenario) -> Self {
         let physics = &cell.world.physics;
-        let link_bodies = cell.arm.link_bodies();
-        let link_name = |body: RigidBodyHandle| {
-            link_bodies
-                .iter()
-                .find(|(_, b)| *b == body)
-                .map(|(name, _)| name.as_str())
+        let link_name = |handle: ColliderHandle| {
+            cell.arm
+                .link_of_collider(handle)
+                .map(|link| link.name.as_str())
         };
         let mut objects = Vec::new();
-        for (_, collider) in physics.colliders.iter() {
+        for (handle, collider) in physics.colliders.iter() {
             let Some(body) = collider.parent() else {
                 continue;
             };
@@ -79,7 +77,7 @@ impl Scene {
             } else if tag == Tag::Bin.bits() {
                 Material::BIN
             } else if tag == Tag::Robot.bits() {
-                match link_name(body) {
+                match link_name(handle) {
                     Some(name) if name.starts_with("finger") || name.starts_with("gripper") => {
                         Material::GRIPPER
                     }
@@ -100,7 +98,7 @@ impl Scene {
             let name = if tag == Tag::Belt.bits() {
                 "belt".to_string()
             } else {
-                link_name(body).unwrap_or("scenery").to_string()
+                link_name(handle).unwrap_or("scenery").to_string()
             };
             objects.push(SceneObject {
                 name,

@@ -1,5 +1,6 @@
 //! The arm and gripper in the physics world: loaded from URDF as a multibody with joint motors.
 
+use std::collections::BTreeMap;
 use std::path::Path;
 
 use nalgebra::Isometry3;
@@ -7,6 +8,7 @@ use rapier3d::prelude::*;
 use rapier3d_urdf::{UrdfLoaderOptions, UrdfMultibodyOptions, UrdfRobot};
 
 use super::urdf_graph::{tree_error, value_error};
+use super::weld::{WeldedRobot, weld_fixed_links};
 use super::{SimError, Tag, World};
 use crate::kinematics::{DOF, JointVector};
 use crate::math::{pose_from_physics, pose_to_physics};
@@ -57,6 +59,18 @@ impl Default for ArmGains {
     }
 }
 
+/// One link of the URDF in the world: the body it rides on (its parent's, when a fixed joint
+/// welded it there) and the colliders declared on it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ArmLink {
+    /// The link's name in the URDF.
+    pub name: String,
+    /// The body that carries the link.
+    pub body: RigidBodyHandle,
+    /// The colliders of the link's `<collision>` shapes.
+    pub colliders: Vec<ColliderHandle>,
+}
+
 /// Handles of the arm in a [`World`].
 #[derive(Debug, Clone)]
 pub struct SimArm {
@@ -64,7 +78,7 @@ pub struct SimArm {
     fingers: [MultibodyJointHandle; 2],
     efforts: [f32; DOF],
     flange_body: RigidBodyHandle,
-    link_bodies: Vec<(String, RigidBodyHandle)>,
+    links: Vec<ArmLink>,
     world_from_base: Isometry3<f64>,
     gains: ArmGains,
 }
@@ -122,12 +136,14 @@ impl SimArm {
         if let Some(reason) = tree_error(&description).or_else(|| value_error(&description)) {
             return Err(urdf_error(reason));
         }
-        let robot = UrdfRobot::from_robot(&description, options, mesh_dir);
-        let link_names: Vec<String> = robot
-            .links
-            .iter()
-            .map(|l| description.links[l.urdf_link_index].name.clone())
-            .collect();
+        let WeldedRobot {
+            robot,
+            collider_sources,
+        } = weld_fixed_links(
+            UrdfRobot::from_robot(&description, options, mesh_dir),
+            &description,
+        );
+        let own_links: Vec<usize> = robot.links.iter().map(|l| l.urdf_link_index).collect();
         let joint_names: Vec<String> = robot
             .joints
             .iter()
@@ -166,14 +182,31 @@ impl SimArm {
             fingers[i] = find_joint(name)?.0;
         }
         couple_fingers(world, &fingers);
-        let link_bodies: Vec<(String, RigidBodyHandle)> = link_names
-            .into_iter()
-            .zip(handles.links.iter().map(|l| l.body))
-            .collect();
-        let Some(flange_body) = link_bodies
+        // Every URDF link with a body or a collider, in the file's order; a welded link names
+        // its host's body and its own colliders.
+        let mut links: Vec<(usize, ArmLink)> = Vec::new();
+        for ((own, handle), sources) in own_links.iter().zip(&handles.links).zip(&collider_sources)
+        {
+            let mut by_source: BTreeMap<usize, Vec<ColliderHandle>> = BTreeMap::new();
+            by_source.entry(*own).or_default();
+            for (collider, source) in handle.colliders.iter().zip(sources) {
+                by_source.entry(*source).or_default().push(collider.handle);
+            }
+            links.extend(by_source.into_iter().map(|(source, colliders)| {
+                let link = ArmLink {
+                    name: description.links[source].name.clone(),
+                    body: handle.body,
+                    colliders,
+                };
+                (source, link)
+            }));
+        }
+        links.sort_by_key(|(source, _)| *source);
+        let links: Vec<ArmLink> = links.into_iter().map(|(_, link)| link).collect();
+        let Some(flange_body) = links
             .iter()
-            .find(|(name, _)| name == FLANGE_LINK)
-            .map(|(_, body)| *body)
+            .find(|link| link.name == FLANGE_LINK)
+            .map(|link| link.body)
         else {
             return Err(urdf_error(format!("no link named `{FLANGE_LINK}`")));
         };
@@ -182,7 +215,7 @@ impl SimArm {
             fingers,
             efforts,
             flange_body,
-            link_bodies,
+            links,
             world_from_base,
             gains: ArmGains::default(),
         };
@@ -194,9 +227,24 @@ impl SimArm {
         &self.world_from_base
     }
 
-    /// The arm's links and their bodies, in URDF order.
-    pub fn link_bodies(&self) -> &[(String, RigidBodyHandle)] {
-        &self.link_bodies
+    /// The arm's links with their bodies and colliders, in URDF order.
+    pub fn links(&self) -> &[ArmLink] {
+        &self.links
+    }
+
+    /// The link a collider of the arm was declared on.
+    pub fn link_of_collider(&self, collider: ColliderHandle) -> Option<&ArmLink> {
+        self.links
+            .iter()
+            .find(|link| link.colliders.contains(&collider))
+    }
+
+    /// The body that carries the link named `name`.
+    pub fn link_body(&self, name: &str) -> Option<RigidBodyHandle> {
+        self.links
+            .iter()
+            .find(|link| link.name == name)
+            .map(|link| link.body)
     }
 
     /// Sets the servo gains used by later commands.
@@ -340,18 +388,15 @@ impl SimArm {
     /// finger pads get `pad_friction`, the rest of the robot a moderate one.
     pub fn dress_colliders(&self, world: &mut World, pad_friction: f64) {
         let physics = &mut world.physics;
-        for (name, body) in self.link_bodies() {
+        for link in self.links() {
+            let name = &link.name;
             let friction = if name.starts_with("finger") {
                 pad_friction
             } else {
                 0.5
             };
-            let Some(rb) = physics.bodies.get(*body) else {
-                continue;
-            };
-            let handles: Vec<ColliderHandle> = rb.colliders().to_vec();
-            for handle in handles {
-                if let Some(collider) = physics.colliders.get_mut(handle) {
+            for handle in &link.colliders {
+                if let Some(collider) = physics.colliders.get_mut(*handle) {
                     collider.set_friction(friction as f32);
                     if name.starts_with("finger") {
                         // Rubber pads grip with their own coefficient, whatever they touch.

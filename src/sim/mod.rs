@@ -9,9 +9,10 @@ mod items;
 mod part;
 mod tag;
 mod urdf_graph;
+mod weld;
 mod world;
 
-pub use arm::{ARM_JOINTS, ArmGains, FINGER_JOINTS, FINGER_LINKS, JAW_SPEED_M_S, SimArm};
+pub use arm::{ARM_JOINTS, ArmGains, ArmLink, FINGER_JOINTS, FINGER_LINKS, JAW_SPEED_M_S, SimArm};
 pub use conveyor::{BELT_ACCEL_M_S2, ConveyorHooks};
 pub use error::SimError;
 pub use items::{BottleItem, BottlePlacement, ItemSet, PartItem, body_pose};

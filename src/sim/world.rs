@@ -215,10 +215,10 @@ mod tests {
         };
         arm.reset_to(&mut world, &[0.3, 0.2, 1.4, 0.0, 1.5, 0.0], 0.03);
         arm.dress_colliders(&mut world, 1.0);
-        let Some((_, finger)) = arm.link_bodies().iter().find(|(n, _)| n == FINGER_LINKS[0]) else {
+        let Some(finger) = arm.link_body(FINGER_LINKS[0]) else {
             panic!("no left finger")
         };
-        let Some(finger_pose) = world.physics.bodies.get(*finger).map(|b| *b.position()) else {
+        let Some(finger_pose) = world.physics.bodies.get(finger).map(|b| *b.position()) else {
             panic!("no finger body")
         };
         // The pad is a 12 x 30 x 90 mm box centred 95 mm out along the finger's z: its tip is

@@ -99,11 +99,10 @@ impl<'a> CellView<'a> {
         let physics = &self.cell.world.physics;
         let dt_s = self.cell.world.params().dt_s;
         FINGER_LINKS.map(|link| {
-            let Some((_, body)) = self.cell.arm.link_bodies().iter().find(|(n, _)| n == link)
-            else {
+            let Some(body) = self.cell.arm.link_body(link) else {
                 return 0.0;
             };
-            let Some(rb) = physics.bodies.get(*body) else {
+            let Some(rb) = physics.bodies.get(body) else {
                 return 0.0;
             };
             let impulse: f64 = rb
