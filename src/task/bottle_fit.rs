@@ -34,8 +34,11 @@ pub struct BottleFitter {
     calibration: CameraCalibration,
     radius_m: f64,
     height_m: f64,
-    /// Vertices of the bottle's mesh in its own frame, each once (its silhouette model).
-    points: Vec<Point3<f64>>,
+    /// Vertices of the bottle's mesh in its own frame, each once (its silhouette model), as
+    /// columns of x, y and z: the box is their projection's extent, taken in vector lanes.
+    xs: Vec<f64>,
+    ys: Vec<f64>,
+    zs: Vec<f64>,
 }
 
 impl BottleFitter {
@@ -57,23 +60,46 @@ impl BottleFitter {
             calibration,
             radius_m: bottle.radius_m,
             height_m: bottle.height_m,
-            points,
+            xs: points.iter().map(|p| p.x).collect(),
+            ys: points.iter().map(|p| p.y).collect(),
+            zs: points.iter().map(|p| p.z).collect(),
         }
     }
 
-    /// The box (`[x0, y0, x1, y1]`, pixels) the bottle at `world_from_bottle` projects to.
+    /// The box (`[x0, y0, x1, y1]`, pixels) the bottle at `world_from_bottle` projects to, or
+    /// `None` when a point of it is not in front of the camera.
+    ///
+    /// The fit projects the mesh a few thousand times per detection, so the bottle-to-camera
+    /// transform is composed once and applied as a matrix to every point.
     pub fn projected_box(&self, world_from_bottle: &Isometry3<f64>) -> Option<[f64; 4]> {
+        let camera = &self.calibration;
+        let camera_from_bottle = camera.world_from_camera.inverse() * world_from_bottle;
+        let m = camera_from_bottle
+            .rotation
+            .to_rotation_matrix()
+            .into_inner();
+        let t = camera_from_bottle.translation.vector;
+        let (fx, fy, cx, cy) = (camera.fx_px, camera.fy_px, camera.cx_px, camera.cy_px);
         let mut b = [
             f64::INFINITY,
             f64::INFINITY,
             f64::NEG_INFINITY,
             f64::NEG_INFINITY,
         ];
-        for point in &self.points {
-            let [u, v] = self.calibration.project(&(world_from_bottle * point))?;
-            b = [b[0].min(u), b[1].min(v), b[2].max(u), b[3].max(v)];
+        let mut nearest_z = f64::INFINITY;
+        for ((&x, &y), &z) in self.xs.iter().zip(&self.ys).zip(&self.zs) {
+            let cz = m[(2, 0)] * x + m[(2, 1)] * y + m[(2, 2)] * z + t.z;
+            let cx_m = m[(0, 0)] * x + m[(0, 1)] * y + m[(0, 2)] * z + t.x;
+            let cy_m = m[(1, 0)] * x + m[(1, 1)] * y + m[(1, 2)] * z + t.y;
+            let u = fx * cx_m / cz + cx;
+            let v = fy * cy_m / cz + cy;
+            nearest_z = if cz < nearest_z { cz } else { nearest_z };
+            b[0] = if u < b[0] { u } else { b[0] };
+            b[1] = if v < b[1] { v } else { b[1] };
+            b[2] = if u > b[2] { u } else { b[2] };
+            b[3] = if v > b[3] { v } else { b[3] };
         }
-        Some(b)
+        (nearest_z > 0.0).then_some(b)
     }
 
     /// The pose of a bottle standing (`lying` false) or lying at `yaw_rad` with its middle over
