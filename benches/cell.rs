@@ -86,7 +86,7 @@ fn step_benches<M: Measurement>(group: &mut BenchmarkGroup<'_, M>, scenario: &Sc
         }
         group.bench_function(name, |b| {
             b.iter(|| {
-                cell.world.step_with_hooks(&cell.conveyor);
+                cell.step();
                 black_box(cell.world.time_s())
             })
         });

@@ -80,7 +80,7 @@ fn belt_carries_the_part_to_the_photo_eye_by_friction() {
         .set_speed_m_s(scenario.conveyor.speed_m_s as f32);
     let mut steps = 0;
     while !cell.photo_eye_blocked() && steps < 2400 {
-        cell.world.step_with_hooks(&cell.conveyor);
+        cell.step();
         steps += 1;
     }
     assert!(cell.photo_eye_blocked(), "nothing reached the photo-eye");
@@ -101,7 +101,7 @@ fn belt_carries_the_part_to_the_photo_eye_by_friction() {
     let dt = scenario.physics.dt_s as f32;
     for _ in 0..240 {
         cell.conveyor.ramp_towards(0.0, dt);
-        cell.world.step_with_hooks(&cell.conveyor);
+        cell.step();
     }
     assert_eq!(cell.conveyor.speed_m_s(), 0.0);
     let at_rest = cell
@@ -110,7 +110,7 @@ fn belt_carries_the_part_to_the_photo_eye_by_friction() {
         .translation
         .x;
     for _ in 0..480 {
-        cell.world.step_with_hooks(&cell.conveyor);
+        cell.step();
     }
     let later = cell
         .body_pose(cell.items.parts()[0].body)
@@ -137,12 +137,12 @@ fn every_part_type_stands_still_and_upright_on_the_stopped_belt() {
         let mut cell = Cell::build(&scenario, None, &mut SimRng::new(5)).expect("cell builds");
         let steps = |s: f64| (s / scenario.physics.dt_s).round() as usize;
         for _ in 0..steps(0.5) {
-            cell.world.step_with_hooks(&cell.conveyor);
+            cell.step();
         }
         let landed = cell.body_pose(cell.items.parts()[0].body).expect("part");
         let (mut worst_tilt_deg, mut worst_shift_mm) = (0.0f64, 0.0f64);
         for _ in 0..steps(2.0) {
-            cell.world.step_with_hooks(&cell.conveyor);
+            cell.step();
             let pose = cell.body_pose(cell.items.parts()[0].body).expect("part");
             let up = pose.rotation * nalgebra::Vector3::z();
             worst_tilt_deg = worst_tilt_deg.max(up.z.clamp(-1.0, 1.0).acos().to_degrees());

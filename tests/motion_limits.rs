@@ -16,6 +16,14 @@ const MAX_MEAN_CYCLE_S: f64 = 8.0;
 fn all_trials() -> (Scenario, Vec<TrialRecord>) {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/paper_50.toml");
     let scenario = Scenario::load(&path).expect("paper_50 loads");
+    let trials = scenario.trials;
+    run_trials(scenario, trials)
+}
+
+/// The first `trials` trials of `scenario` (read from paper_50's path), oracle perception, on
+/// two threads.
+fn run_trials(scenario: Scenario, trials: u32) -> (Scenario, Vec<TrialRecord>) {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/paper_50.toml");
     let runner =
         CellTrialRunner::new(scenario.clone(), &path, Perception::Oracle).expect("runner builds");
     let (runner, seed) = (&runner, scenario.seed);
@@ -23,7 +31,7 @@ fn all_trials() -> (Scenario, Vec<TrialRecord>) {
         let workers: Vec<_> = (0..2u32)
             .map(|worker| {
                 scope.spawn(move || {
-                    (0..scenario.trials)
+                    (0..trials)
                         .filter(|i| i % 2 == worker)
                         .map(|i| runner.run_trial(i, trial_seed(seed, i)))
                         .collect::<Vec<_>>()
@@ -87,5 +95,31 @@ fn every_trial_keeps_the_joints_within_their_limits_and_the_part_in_the_jaws() {
     assert!(
         mean_cycle_s <= MAX_MEAN_CYCLE_S,
         "mean cycle {mean_cycle_s:.2} s"
+    );
+}
+
+/// The pads' pre-sliding stiction is what keeps a carried part in place at the default
+/// substeps: with it turned off (`gripper.pad_preslide_mm = 0`) the solver's Coulomb friction
+/// alone lets the same parts creep along the pads by several millimetres, and they still arrive
+/// (it is friction, not a weld, either way).
+#[test]
+fn pad_stiction_keeps_a_carried_part_from_creeping() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/paper_50.toml");
+    let scenario = Scenario::load(&path).expect("paper_50 loads");
+    let mut plain = scenario.clone();
+    plain.gripper.pad_preslide_mm = 0.0;
+    let largest = |records: &[TrialRecord]| {
+        assert!(records.iter().all(|r| r.outcome == Outcome::Success));
+        records
+            .iter()
+            .map(|r| r.motion.grip_drift_mm)
+            .fold(0.0f64, f64::max)
+    };
+    let with = largest(&run_trials(scenario, 10).1);
+    let without = largest(&run_trials(plain, 10).1);
+    assert!(with < 1.0, "with stiction a part drifted {with:.2} mm");
+    assert!(
+        without > 3.0 * with,
+        "without stiction {without:.2} mm, with {with:.2} mm"
     );
 }

@@ -59,6 +59,7 @@ const RANGES: &[(&str, f64, f64, bool)] = &[
     ("robot.base_xyz_m[1]", -10.0, 10.0, false),
     ("robot.pedestal_side_m", 0.0, 2.0, true),
     ("gripper.pad_friction", 0.0, 5.0, true),
+    ("gripper.pad_preslide_mm", 0.0, 5.0, false),
     ("roundness_tolerance_mm", 0.0, 5.0, true),
     ("part_types[2].bore_diameter_mm", 0.0, 100.0, true),
     ("part_types[0].outer_diameter_mm", 0.0, 100.0, true),

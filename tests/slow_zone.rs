@@ -28,7 +28,7 @@ fn part_at_the_eye_after_the_stop(speed_m_s: f64, creep_m_s: f64, seed: u64) -> 
     let step = |cell: &mut Cell, drive: &mut BeltDrive| {
         drive.set_zone_occupied(cell.slow_zone_occupied());
         drive.advance(&cell.conveyor, dt);
-        cell.world.step_with_hooks(&cell.conveyor);
+        cell.step();
     };
     let mut steps = 0;
     while !cell.photo_eye_blocked() && steps < 4800 {

@@ -12,8 +12,8 @@ use crate::math::pose_to_physics;
 use crate::rng::SimRng;
 use crate::scenario::Scenario;
 use crate::sim::{
-    BELT_ACCEL_M_S2, BottlePlacement, ConveyorHooks, ItemSet, PartInstance, SimArm, SimError, Tag,
-    World, WorldParams, body_pose, groups,
+    BELT_ACCEL_M_S2, BottlePlacement, CellHooks, ConveyorHooks, FINGER_LINKS, ItemSet, PadStiction,
+    PartInstance, SimArm, SimError, Tag, World, WorldParams, body_pose, groups,
 };
 
 /// Why a cell could not be built.
@@ -62,6 +62,8 @@ pub struct Cell {
     pub arm: SimArm,
     /// The belt's contact hooks (its speed).
     pub conveyor: ConveyorHooks,
+    /// The finger pads' stiction (see [`PadStiction`]).
+    pub pads: PadStiction,
     /// The photo-eye's sensor collider.
     pub photo_eye: ColliderHandle,
     /// The slow-down zone's sensor collider, just upstream of the photo-eye, when the belt runs
@@ -140,6 +142,17 @@ impl Builder<'_> {
 }
 
 impl Cell {
+    /// Advances the world one step with the cell's contact hooks (the belt's speed, the pads'
+    /// stiction), then brings the pads' anchors up to date.
+    pub fn step(&mut self) {
+        let hooks = CellHooks {
+            conveyor: &self.conveyor,
+            pads: &self.pads,
+        };
+        self.world.step_with_hooks(&hooks);
+        self.pads.update(&self.world.physics);
+    }
+
     /// Builds the cell for one trial: the scenario's fixed layout plus a part and a bottle drawn
     /// from `rng`, the arm at home.
     pub fn build(
@@ -315,10 +328,18 @@ impl Cell {
         let finger_reference_m = 0.045;
         arm.reset_to(&mut world, &home, finger_reference_m);
         arm.dress_colliders(&mut world, scenario.gripper.pad_friction);
+        let pads = PadStiction::new(
+            FINGER_LINKS
+                .iter()
+                .filter_map(|name| arm.link_body(name))
+                .collect(),
+            scenario.gripper.pad_preslide_mm / 1000.0,
+        );
         Ok(Self {
             world,
             arm,
             conveyor: ConveyorHooks::new(belt_collider),
+            pads,
             photo_eye,
             slow_zone,
             items,

@@ -97,7 +97,8 @@ fn default_roundness_uncertainty_mm() -> f64 {
 pub struct PhysicsSection {
     /// Fixed time step, s.
     pub dt_s: f64,
-    /// Solver iterations per step.
+    /// Solver substeps per step while a robot collider is near a moving body (fewer while none
+    /// is: `sim::FREE_SOLVER_ITERATIONS`).
     pub solver_iterations: usize,
     /// Natural frequency of contacts between moving bodies, Hz.
     pub contact_frequency_hz: f64,
@@ -110,7 +111,7 @@ impl Default for PhysicsSection {
         // Why each value: see `sim::World::new`, which turns these into solver settings.
         Self {
             dt_s: 1.0 / 240.0,
-            solver_iterations: 8,
+            solver_iterations: 4,
             contact_frequency_hz: 60.0,
             contact_damping_ratio: 2.0,
         }
@@ -173,6 +174,8 @@ pub struct GripperSection {
     pub pad_friction: f64,
     /// Clearance between an open finger and the part's outer surface, m.
     pub open_clearance_m: f64,
+    /// How far a pad deflects before a held part slides, mm (`sim::PadStiction`); 0 turns it off.
+    pub pad_preslide_mm: f64,
 }
 
 impl Default for GripperSection {
@@ -181,6 +184,7 @@ impl Default for GripperSection {
             grip_force_n: 60.0,
             pad_friction: 1.0,
             open_clearance_m: 0.012,
+            pad_preslide_mm: 1.0,
         }
     }
 }

@@ -364,6 +364,7 @@ impl Scenario {
             0.0,
             0.05,
         )?;
+        c.in_range("gripper.pad_preslide_mm", gripper.pad_preslide_mm, 0.0, 5.0)?;
         Ok(())
     }
 

@@ -53,8 +53,9 @@ impl PhysicsHooks for ConveyorHooks {
         if speed == 0.0 || !on_belt {
             return;
         }
-        // The tangent velocity is collider 1's surface velocity relative to collider 2's (checked
-        // by the conveyor test: parts travel downstream, along +x).
+        // The tangent velocity is the velocity the solver drives collider 2's surface to,
+        // relative to collider 1's (checked by the conveyor test: parts travel downstream, along
+        // +x; and by the pads' stiction, which pulls a held part back with the same sign).
         let sign = if context.collider1 == self.belt {
             1.0
         } else {

@@ -6,6 +6,7 @@ mod arm;
 mod conveyor;
 mod error;
 mod items;
+mod pad_stiction;
 mod part;
 mod tag;
 mod urdf_graph;
@@ -16,6 +17,7 @@ pub use arm::{ARM_JOINTS, ArmGains, ArmLink, FINGER_JOINTS, FINGER_LINKS, JAW_SP
 pub use conveyor::{BELT_ACCEL_M_S2, ConveyorHooks};
 pub use error::SimError;
 pub use items::{BottleItem, BottlePlacement, ItemSet, PartItem, body_pose};
+pub use pad_stiction::{CellHooks, PRESLIDE_RATE_HZ, PadStiction};
 pub use part::{BoreForm, PartInstance, tube_mass_kg};
 pub use tag::{Tag, groups};
 pub use world::{CONTACT_MARGIN_M, FREE_SOLVER_ITERATIONS, World, WorldParams};

@@ -293,7 +293,7 @@ impl<'a> Trial<'a> {
         self.gripper
             .advance(&mut self.cell.world, &self.cell.arm, dt);
         let started = Instant::now();
-        self.cell.world.step_with_hooks(&self.cell.conveyor);
+        self.cell.step();
         self.timing.physics_ms += started.elapsed().as_secs_f64() * 1e3;
         self.measure_motion(dt);
         self.observe(|slot, view| slot.step(view));
