@@ -1,5 +1,6 @@
 //! Cell physics timings (`cargo bench --bench cell`): one step of the world with the arm, the
-//! belt and ten parts, and one whole oracle trial of `paper_50`.
+//! belt and ten parts, and one whole oracle trial of `paper_50`, also as the physics ran it
+//! before the pads' stiction (8 substeps near the arm, plain Coulomb friction on the pads).
 //!
 //! The step is measured three ways in the same run, so that a change of the solver schedule
 //! is compared on one machine under one load: `physics_step_arm_ten_parts` with the world's
@@ -106,13 +107,31 @@ fn cell_benches(c: &mut Criterion) {
         Err(e) => panic!("{e}"),
     };
     group.sample_size(10);
-    group.bench_function("paper_50_oracle_trial", |b| {
-        let mut index = 0;
-        b.iter(|| {
-            index = (index + 1) % scenario.trials;
-            black_box(runner.run_trial(index, trial_seed(scenario.seed, index)))
-        })
-    });
+    // The same trials as the physics ran them before the pads' stiction: 8 substeps near the
+    // arm, plain Coulomb friction on the pads.
+    let mut before = scenario.clone();
+    before.physics.solver_iterations = 8;
+    before.gripper.pad_preslide_mm = 0.0;
+    let runner_before =
+        match CellTrialRunner::new(before, Path::new("paper_50.toml"), Perception::Oracle) {
+            Ok(r) => r,
+            Err(e) => panic!("{e}"),
+        };
+    for (name, runner) in [
+        ("paper_50_oracle_trial", &runner),
+        (
+            "paper_50_oracle_trial_8_substeps_no_stiction",
+            &runner_before,
+        ),
+    ] {
+        group.bench_function(name, |b| {
+            let mut index = 0;
+            b.iter(|| {
+                index = (index + 1) % scenario.trials;
+                black_box(runner.run_trial(index, trial_seed(scenario.seed, index)))
+            })
+        });
+    }
     group.finish();
 }
 
