@@ -2,8 +2,9 @@
 
 use nalgebra::{Isometry3, Translation3};
 use rapier3d::geometry::SharedShape;
-use rapier3d::parry::bounding_volume::BoundingVolume;
+use rapier3d::parry::bounding_volume::{Aabb, BoundingVolume};
 use rapier3d::parry::query;
+use rapier3d::prelude::Pose;
 
 use super::JointTrajectory;
 use crate::kinematics::{ArmModel, DOF, JointVector, link_frames};
@@ -46,6 +47,13 @@ pub struct Obstacle {
     pub shape: SharedShape,
 }
 
+/// An obstacle's pose as parry takes it, and its bounding box there.
+fn placed(obstacle: &Obstacle) -> (Pose, Aabb) {
+    let pose = pose_to_physics(&obstacle.base_from_shape);
+    let aabb = obstacle.shape.compute_aabb(&pose);
+    (pose, aabb)
+}
+
 /// A body carried in the gripper, fixed to the TCP.
 #[derive(Debug, Clone)]
 pub struct Carried {
@@ -72,6 +80,9 @@ pub struct CollisionChecker {
     model: ArmModel,
     robot: Vec<RobotShape>,
     obstacles: Vec<Obstacle>,
+    /// Each obstacle's pose as parry takes it and its bounding box, worked out once: a plan
+    /// checks thousands of configurations against the same static obstacles.
+    placed_obstacles: Vec<(Pose, Aabb)>,
     finger_reference_m: f64,
     margin_m: f64,
     /// Largest joint step between checked configurations, rad.
@@ -88,10 +99,12 @@ impl CollisionChecker {
         obstacles: Vec<Obstacle>,
         margin_m: f64,
     ) -> Self {
+        let placed_obstacles = obstacles.iter().map(placed).collect();
         Self {
             model,
             robot,
             obstacles,
+            placed_obstacles,
             finger_reference_m,
             margin_m,
             resolution_rad: 0.015,
@@ -105,6 +118,7 @@ impl CollisionChecker {
 
     /// Adds an obstacle (the bottle once perception has seen it, say).
     pub fn add_obstacle(&mut self, obstacle: Obstacle) {
+        self.placed_obstacles.push(placed(&obstacle));
         self.obstacles.push(obstacle);
     }
 
@@ -144,18 +158,19 @@ impl CollisionChecker {
         for (link, pose, shape) in placed {
             let pose = pose_to_physics(&pose);
             let aabb = shape.compute_aabb(&pose).loosened(self.margin_m as f32);
-            for obstacle in &self.obstacles {
+            for (obstacle, (obstacle_pose, obstacle_aabb)) in
+                self.obstacles.iter().zip(&self.placed_obstacles)
+            {
                 if ignore.contains(&obstacle.name.as_str()) {
                     continue;
                 }
-                let obstacle_pose = pose_to_physics(&obstacle.base_from_shape);
-                if !aabb.intersects(&obstacle.shape.compute_aabb(&obstacle_pose)) {
+                if !aabb.intersects(obstacle_aabb) {
                     continue;
                 }
                 let close = match query::distance(
                     &pose,
                     shape.as_ref(),
-                    &obstacle_pose,
+                    obstacle_pose,
                     obstacle.shape.as_ref(),
                 ) {
                     Ok(d) => d.distance < self.margin_m as f32,
@@ -163,7 +178,7 @@ impl CollisionChecker {
                     Err(_) => query::intersection_test(
                         &pose,
                         shape.as_ref(),
-                        &obstacle_pose,
+                        obstacle_pose,
                         obstacle.shape.as_ref(),
                     )
                     .map(|hit| hit.intersecting)
