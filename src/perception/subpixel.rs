@@ -192,14 +192,16 @@ pub fn refine_ray(
     // first the searched stretch, then what the windows need beyond it.
     let searched = in_chunks((low - span) as usize..(high + span + 1) as usize, count);
     samples.fill(searched.clone(), scratch);
-    let mut best: Option<(isize, f64)> = None;
+    // The first steepest positive rise, kept by selects rather than branches (which
+    // mispredicted on noisy profiles): a rise must beat zero, then every later one the best.
+    let (mut best, mut best_rise) = (None, 0.0);
     for j in low..=high {
         let rise = scratch[(j + span) as usize] - scratch[(j - span) as usize];
-        if rise > 0.0 && best.is_none_or(|(_, b)| rise > b) {
-            best = Some((j, rise));
-        }
+        let steeper = rise > best_rise;
+        best = if steeper { Some(j) } else { best };
+        best_rise = if steeper { rise } else { best_rise };
     }
-    let (j, _) = best?;
+    let j = best?;
     let wing = far.max(near).max(rim_near).max(half);
     let (first, end) = (
         (j - wing).max(0) as usize,
@@ -208,7 +210,6 @@ pub fn refine_ray(
     samples.fill(in_chunks(first..searched.start.max(first), count), scratch);
     samples.fill(in_chunks(searched.end.min(end)..end, count), scratch);
     let profile = scratch.as_slice();
-    let (j, _) = best?;
     // The rim side stops short of a thin wall's outer edge.
     let rim_far = steps_of(params.rim_far_px).clamp(1, far);
     let (rim_near_out, rim_level_near) = (rim_near.min(rim_far - 1).max(0), near.min(rim_far));
@@ -219,8 +220,10 @@ pub fn refine_ray(
     }
     // The flanks as lines, so that a ramp (a stain's soft rim, a shadow, uneven light) does not
     // bias the normalisation.
-    let inner = Flank::fit(profile, j - far, j - rim_near);
-    let outer = Flank::fit(profile, j + rim_near_out, j + rim_far);
+    let [inner, outer] = Flank::fit_both(
+        profile,
+        [(j - far, j - rim_near), (j + rim_near_out, j + rim_far)],
+    );
     let (a, b) = ((j - half).max(0), (j + half.min(rim_far)).min(last));
     let mut integral = 0.0;
     for k in a..=b {
@@ -273,36 +276,66 @@ struct Flank {
 
 impl Flank {
     /// The line through `profile[from..=to]` (indices clamped to the profile).
+    #[cfg(test)]
     fn fit(profile: &[f64], from: isize, to: isize) -> Self {
+        let [flank, _] = Self::fit_both(profile, [(from, to); 2]);
+        flank
+    }
+
+    /// The lines through `profile[from..=to]` for two `(from, to)` (indices clamped to the
+    /// profile), each with the bits of a fit of its own. Each fit is three chains of sums, one
+    /// after the other; stepping both fits' chains together lets them overlap.
+    fn fit_both(profile: &[f64], ranges: [(isize, isize); 2]) -> [Self; 2] {
         let last = profile.len() as isize - 1;
-        let (a, b) = (from.clamp(0, last) as usize, to.clamp(0, last) as usize);
-        let values = &profile[a..=b];
-        let n = values.len() as f64;
-        let mean_offset = (n - 1.0) / 2.0;
-        let mean_level = values.iter().sum::<f64>() / n;
+        let values = ranges.map(|(from, to)| {
+            let (a, b) = (from.clamp(0, last) as usize, to.clamp(0, last) as usize);
+            (a, &profile[a..=b])
+        });
+        let longest = values[0].1.len().max(values[1].1.len());
+        let n = values.map(|(_, v)| v.len() as f64);
+        let mean_offset = n.map(|n| (n - 1.0) / 2.0);
+        // Sample `i` of both stretches, where the stretch has one.
+        let pair = |i: usize| values.map(|(_, v)| v.get(i).copied());
+        let mut sums = [0.0; 2];
+        for i in 0..longest {
+            for (sum, v) in sums.iter_mut().zip(pair(i)) {
+                if let Some(v) = v {
+                    *sum += v;
+                }
+            }
+        }
+        let mean_level = [sums[0] / n[0], sums[1] / n[1]];
         // The abscissae `i - mean_offset` are multiples of a half and their squares of a
         // quarter, so stepping them by one and summing their squares in closed form, n (n^2 - 1)
         // / 12, is exact: the same bits as converting each index and summing the squares.
-        let sxx = n * (n * n - 1.0) / 12.0;
-        let mut sxy = 0.0;
-        let mut x = -mean_offset;
-        for &v in values {
-            sxy += x * (v - mean_level);
-            x += 1.0;
+        let sxx = n.map(|n| n * (n * n - 1.0) / 12.0);
+        let mut sxy = [0.0; 2];
+        let mut x = mean_offset.map(|m| -m);
+        for i in 0..longest {
+            for k in 0..2 {
+                if let Some(v) = pair(i)[k] {
+                    sxy[k] += x[k] * (v - mean_level[k]);
+                    x[k] += 1.0;
+                }
+            }
         }
-        let slope = if sxx > 0.0 { sxy / sxx } else { 0.0 };
-        let mut sum_sq = 0.0;
-        let mut x = -mean_offset;
-        for &v in values {
-            sum_sq += (v - mean_level - slope * x).powi(2);
-            x += 1.0;
+        let slope = [0, 1].map(|k| if sxx[k] > 0.0 { sxy[k] / sxx[k] } else { 0.0 });
+        let mut sum_sq = [0.0; 2];
+        let mut x = mean_offset.map(|m| -m);
+        for i in 0..longest {
+            for k in 0..2 {
+                if let Some(v) = pair(i)[k] {
+                    sum_sq[k] += (v - mean_level[k] - slope[k] * x[k]).powi(2);
+                    x[k] += 1.0;
+                }
+            }
         }
-        Self {
-            mean_index: a as f64 + mean_offset,
-            mean_level,
-            slope,
-            rms: (sum_sq / n).sqrt(),
-        }
+        [0, 1].map(|k| Self {
+            mean_index: values[k].0 as f64 + mean_offset[k],
+            mean_level: mean_level[k],
+            slope: slope[k],
+            rms: (sum_sq[k] / n[k]).sqrt(),
+        })
     }
 
     /// The line's level at sample index `k`.
