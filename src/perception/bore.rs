@@ -39,7 +39,7 @@ use crate::perception::integer_edges::{canny_points, integer_fit};
 use crate::perception::rim::{RimParams, scan_rim};
 use crate::perception::robust_series::fit_series_robust;
 use crate::perception::roundness::{DEFAULT_MAX_UPR, filtered_roundness_bridged, median_of};
-use crate::perception::subpixel::{EdgePoint, RayDir, RayParams, refine_ray};
+use crate::perception::subpixel::{EdgePoint, RayDir, RayParams, RaySteps, refine_ray_in_steps};
 use crate::perception::threshold::{
     ThresholdMethod, adaptive_mean_threshold_floored, brighten_above, otsu_level,
 };
@@ -456,11 +456,12 @@ impl BoreDetector {
             None => p.rays,
         };
         let mut scratch = Vec::new();
+        let steps = RaySteps::new(&ray_params);
         let edges: Vec<EdgePoint> = rays
             .iter()
             .filter_map(|&ray| {
                 let rho = outline.radius_along(ray.unit);
-                refine_ray(filtered, coarse.centre, ray, rho, &ray_params, &mut scratch)
+                refine_ray_in_steps(filtered, coarse.centre, ray, rho, &steps, &mut scratch)
             })
             .collect();
         if (edges.len() as f64) < p.min_valid_share * ray_count as f64 {

@@ -102,23 +102,56 @@ fn follow_all(
     w: usize,
     h: usize,
 ) -> Vec<Contour> {
-    let offsets: [isize; 8] = STEPS.map(|(dx, dy)| dx + dy * stride as isize);
     #[cfg(target_arch = "x86_64")]
-    let avx2 = std::arch::is_x86_feature_detected!("avx2");
-    #[cfg(not(target_arch = "x86_64"))]
-    let avx2 = false;
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the function only requires AVX2, which the CPU was just found to have.
+        return unsafe { follow_all_avx2(state, label, stride, w, h) };
+    }
+    follow_all_kernel(state, label, stride, w, h, false)
+}
+
+/// [`follow_all_kernel`] compiled for AVX2, its block skips inlined.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn follow_all_avx2(
+    state: &mut [u8],
+    label: &mut [u32],
+    stride: usize,
+    w: usize,
+    h: usize,
+) -> Vec<Contour> {
+    follow_all_kernel(state, label, stride, w, h, true)
+}
+
+/// The body of [`follow_all`]; `avx2` only from the AVX2 build.
+#[inline(always)]
+fn follow_all_kernel(
+    state: &mut [u8],
+    label: &mut [u32],
+    stride: usize,
+    w: usize,
+    h: usize,
+    avx2: bool,
+) -> Vec<Contour> {
+    let offsets: [isize; 8] = STEPS.map(|(dx, dy)| dx + dy * stride as isize);
 
     let mut contours: Vec<Contour> = Vec::new();
     for y in 1..=h {
-        // The frame is border number 1: "no enclosing border".
-        let mut last_border: u32 = 1;
+        // The last traced pixel the scan passed on this row; its border number is the last
+        // border seen (the frame, number 1, before any). Read only where a border starts: no
+        // trace runs between passing that pixel and the next start, so it still holds the
+        // number it held when passed.
+        let mut last_marked: Option<usize> = None;
         let mut x = 1;
         let row_end = y * stride + w + 1;
         while x <= w {
             let p = y * stride + x;
             let quiet = quiet_run(avx2, state, p, row_end);
-            if quiet > 0 {
-                x += quiet;
+            if let Some(marked) = quiet.last_marked {
+                last_marked = Some(marked);
+            }
+            if quiet.pixels > 0 {
+                x += quiet.pixels;
                 continue;
             }
             let here = state[p];
@@ -130,13 +163,14 @@ fn follow_all(
                 Some((0, BorderKind::Outer))
             } else if here != MARKED_EAST && state[p + 1] == BACKGROUND {
                 if here == MARKED {
-                    last_border = label[p];
+                    last_marked = Some(p);
                 }
                 Some((EAST, BorderKind::Hole))
             } else {
                 None
             };
             if let Some((from_dir, kind)) = start {
+                let last_border = last_marked.map_or(1, |m| label[m]);
                 let number = contours.len() as u32 + 2;
                 let parent = if last_border > 1 {
                     let index = (last_border - 2) as usize;
@@ -157,7 +191,7 @@ fn follow_all(
                 });
             }
             if state[p] != UNVISITED {
-                last_border = label[p];
+                last_marked = Some(p);
             }
             x += 1;
         }
@@ -165,12 +199,23 @@ fn follow_all(
     contours
 }
 
-/// How many pixels from `p` on (before `end`, which must be a padding byte or before one) are
-/// uneventful, counted a block at a time: the scan skips them. A pixel is eventful where a
-/// border starts (an unvisited bright pixel next to a dark one) or a traced one passes (its
-/// number becomes the last border seen); elsewhere the scan only moves on. May stop short of the
-/// first eventful pixel (the scan then steps through the rest one by one, to the same effect).
-fn quiet_run(avx2: bool, state: &[u8], p: usize, end: usize) -> usize {
+/// A stretch of a row the raster scan passes without starting a border.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct QuietRun {
+    /// Its length, pixels.
+    pixels: usize,
+    /// The last traced pixel in it.
+    last_marked: Option<usize>,
+}
+
+/// The pixels from `p` on (before `end`, which must be a padding byte or before one) where no
+/// border starts, counted a block at a time: the scan skips them, noting the last traced one. A
+/// border starts at an unvisited bright pixel with a dark left neighbour (outer), or at an
+/// unvisited or traced pixel whose east neighbour is dark and was not found so by a trace
+/// (hole). May stop short of the first start (the scan then steps through the rest one by one,
+/// to the same effect).
+#[inline(always)]
+fn quiet_run(avx2: bool, state: &[u8], p: usize, end: usize) -> QuietRun {
     #[cfg(target_arch = "x86_64")]
     if avx2 {
         // SAFETY: `avx2` is true only where the CPU was found to have AVX2.
@@ -180,8 +225,23 @@ fn quiet_run(avx2: bool, state: &[u8], p: usize, end: usize) -> usize {
     quiet_run_words(state, p, end)
 }
 
+/// The last traced pixel of a block from `from` before its first start (`starts` and `marked`:
+/// one bit per pixel, at most 32), or `last` when it has none; and where the first start is.
+#[inline(always)]
+fn block_end(from: usize, starts: u64, marked: u64, last: Option<usize>) -> (Option<usize>, u32) {
+    let length = (starts | (1 << 32)).trailing_zeros();
+    let before = marked & ((1u64 << length) - 1);
+    let last = if before != 0 {
+        Some(from + 63 - before.leading_zeros() as usize)
+    } else {
+        last
+    };
+    (last, length)
+}
+
 /// [`quiet_run`] eight pixels a word: the states are 0 to 3, so a byte's two low bits say all.
-fn quiet_run_words(state: &[u8], p: usize, end: usize) -> usize {
+#[inline]
+fn quiet_run_words(state: &[u8], p: usize, end: usize) -> QuietRun {
     const ONES: u64 = 0x0101_0101_0101_0101;
     let word = |a: usize| {
         state
@@ -189,31 +249,49 @@ fn quiet_run_words(state: &[u8], p: usize, end: usize) -> usize {
             .and_then(|b| b.first_chunk::<8>())
             .map(|b| u64::from_le_bytes(*b))
     };
-    let mut q = p;
+    // One bit per byte (its lowest) to one bit per pixel.
+    let pack = |v: u64| (0..8).fold(0u64, |bits, k| bits | (((v >> (8 * k)) & 1) << k));
+    // The block's address does not wait on the block before (only the exit does), so the
+    // loads run ahead.
+    let (mut q, mut last_marked) = (p, None);
     while q + 8 <= end {
-        let (Some(left), Some(here), Some(right)) =
-            (word(q.wrapping_sub(1)), word(q), word(q + 1))
+        let (Some(left), Some(here), Some(right)) = (word(q.wrapping_sub(1)), word(q), word(q + 1))
         else {
             break;
         };
         let dark = |v: u64| !(v | (v >> 1)) & ONES;
-        let marked = (here >> 1) & ONES;
-        let eventful = marked | (here & ONES & (dark(left) | dark(right)));
-        if eventful != 0 {
-            return q - p + eventful.trailing_zeros() as usize / 8;
+        let (low, high) = (here & ONES, (here >> 1) & ONES);
+        let outer = low & !high & dark(left);
+        let hole = (low ^ high) & dark(right);
+        let starts = pack(outer | hole);
+        let (last, length) = block_end(q, starts, pack(high), last_marked);
+        last_marked = last;
+        if starts != 0 {
+            return QuietRun {
+                pixels: q + length as usize - p,
+                last_marked,
+            };
         }
         q += 8;
     }
-    q - p
+    QuietRun {
+        pixels: q - p,
+        last_marked,
+    }
 }
 
 /// [`quiet_run`] 32 pixels at a time with AVX2, then word by word.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-fn quiet_run_avx2(state: &[u8], p: usize, end: usize) -> usize {
+#[inline]
+fn quiet_run_avx2(state: &[u8], p: usize, end: usize) -> QuietRun {
     use std::arch::x86_64::*;
-    let (one, zero) = (_mm256_set1_epi8(UNVISITED as i8), _mm256_setzero_si256());
-    let mut q = p;
+    let (one, two, zero) = (
+        _mm256_set1_epi8(UNVISITED as i8),
+        _mm256_set1_epi8(MARKED as i8),
+        _mm256_setzero_si256(),
+    );
+    let (mut q, mut last_marked) = (p, None);
     while q + 32 <= end {
         let (Some(left), Some(here), Some(right)) = (
             state.get(q.wrapping_sub(1)..q + 31),
@@ -230,19 +308,27 @@ fn quiet_run_avx2(state: &[u8], p: usize, end: usize) -> usize {
                 _mm256_loadu_si256(right.as_ptr().cast()),
             )
         };
-        let marked = _mm256_cmpgt_epi8(here, one);
-        let next_to_dark = _mm256_or_si256(
-            _mm256_cmpeq_epi8(left, zero),
-            _mm256_cmpeq_epi8(right, zero),
-        );
-        let starts = _mm256_and_si256(_mm256_cmpeq_epi8(here, one), next_to_dark);
-        let eventful = _mm256_movemask_epi8(_mm256_or_si256(marked, starts)) as u32;
-        if eventful != 0 {
-            return q - p + eventful.trailing_zeros() as usize;
+        let unvisited = _mm256_cmpeq_epi8(here, one);
+        let open_east = _mm256_or_si256(unvisited, _mm256_cmpeq_epi8(here, two));
+        let outer = _mm256_and_si256(unvisited, _mm256_cmpeq_epi8(left, zero));
+        let hole = _mm256_and_si256(open_east, _mm256_cmpeq_epi8(right, zero));
+        let bits = |v: __m256i| u64::from(_mm256_movemask_epi8(v) as u32);
+        let starts = bits(_mm256_or_si256(outer, hole));
+        let (last, length) = block_end(q, starts, bits(_mm256_cmpgt_epi8(here, one)), last_marked);
+        last_marked = last;
+        if starts != 0 {
+            return QuietRun {
+                pixels: q + length as usize - p,
+                last_marked,
+            };
         }
         q += 32;
     }
-    q - p + quiet_run_words(state, q, end)
+    let rest = quiet_run_words(state, q, end);
+    QuietRun {
+        pixels: q - p + rest.pixels,
+        last_marked: rest.last_marked.or(last_marked),
+    }
 }
 
 /// Follows one border from its starting pixel `start` whose dark neighbour lies in direction
@@ -418,16 +504,17 @@ mod tests {
         }
     }
 
-    /// Whether the raster scan has anything to do at a pixel (see [`quiet_run`]).
-    fn eventful(left: u8, here: u8, right: u8) -> bool {
-        here >= MARKED || (here == UNVISITED && (left == BACKGROUND || right == BACKGROUND))
+    /// Whether a border starts at a pixel (see [`quiet_run`]).
+    fn starts(left: u8, here: u8, right: u8) -> bool {
+        (here == UNVISITED && left == BACKGROUND)
+            || ((here == UNVISITED || here == MARKED) && right == BACKGROUND)
     }
 
     #[test]
-    fn quiet_runs_stop_at_the_first_eventful_pixel_in_both_builds() {
+    fn quiet_runs_stop_at_the_first_start_and_note_the_last_traced_pixel_in_both_builds() {
         let mut rng = crate::rng::SimRng::new(5);
-        for trial in 0..3000 {
-            let len = 2 + (rng.next_u64() % 90) as usize;
+        for trial in 0..5000 {
+            let len = 2 + (rng.next_u64() % 150) as usize;
             // Mostly long runs of one state, sometimes any state.
             let mut state = vec![0u8; len + 1];
             let mut level = 0u8;
@@ -435,7 +522,7 @@ mod tests {
                 if rng.uniform() < 0.08 {
                     level = (rng.next_u64() % 4) as u8;
                 }
-                *s = if rng.uniform() < 0.02 {
+                *s = if rng.uniform() < 0.05 {
                     (rng.next_u64() % 4) as u8
                 } else {
                     level
@@ -444,7 +531,7 @@ mod tests {
             let end = len;
             let p = 1 + (rng.next_u64() % (len as u64 - 1)) as usize;
             let first = (p..end)
-                .find(|&q| eventful(state[q - 1], state[q], state[q + 1]))
+                .find(|&q| starts(state[q - 1], state[q], state[q + 1]))
                 .unwrap_or(end);
             for avx2 in [false, true] {
                 #[cfg(target_arch = "x86_64")]
@@ -456,9 +543,12 @@ mod tests {
                     continue;
                 }
                 let quiet = quiet_run(avx2, &state, p, end);
-                assert!(p + quiet <= first, "trial {trial}, avx2 {avx2}");
+                let stop = p + quiet.pixels;
+                assert!(stop <= first, "trial {trial}, avx2 {avx2}");
                 // Only a tail shorter than a word is left to the pixel-by-pixel scan.
-                assert!(p + quiet == first || end - (p + quiet) < 8, "trial {trial}");
+                assert!(stop == first || end - stop < 8, "trial {trial}");
+                let last_marked = (p..stop).rev().find(|&q| state[q] >= MARKED);
+                assert_eq!(quiet.last_marked, last_marked, "trial {trial}, avx2 {avx2}");
             }
         }
     }

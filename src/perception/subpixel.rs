@@ -147,23 +147,63 @@ pub fn refine_ray(
     params: &RayParams,
     scratch: &mut Vec<f64>,
 ) -> Option<EdgePoint> {
+    let steps = RaySteps::new(params);
+    refine_ray_in_steps(image, centre, ray, expected_radius_px, &steps, scratch)
+}
+
+/// A [`RayParams`]' distances in samples, worked out once for all the rays of a bore.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RaySteps {
+    /// The parameters.
+    params: RayParams,
+    /// `search_half_px`, `level_near_px`, `level_far_px`, `rim_near_px`, `integral_half_px`,
+    /// `rim_far_px` and half a pixel, in samples.
+    search: isize,
+    near: isize,
+    far: isize,
+    rim_near: isize,
+    half: isize,
+    rim_far: isize,
+    span: isize,
+}
+
+impl RaySteps {
+    /// The distances of `params` in samples.
+    pub fn new(params: &RayParams) -> Self {
+        let step = params.step_px;
+        // Truncation of the value plus a half: `round` for these non-negative values, without a
+        // libm call (rounding instructions need SSE4.1, beyond the baseline target).
+        let steps_of = |d: f64| (d / step + 0.5) as isize;
+        Self {
+            params: *params,
+            search: steps_of(params.search_half_px),
+            near: steps_of(params.level_near_px),
+            far: steps_of(params.level_far_px),
+            rim_near: steps_of(params.rim_near_px),
+            half: steps_of(params.integral_half_px),
+            rim_far: steps_of(params.rim_far_px),
+            span: steps_of(0.5),
+        }
+    }
+}
+
+/// [`refine_ray`] with the parameters' distances in samples worked out beforehand.
+pub fn refine_ray_in_steps(
+    image: &GrayImage,
+    centre: [f64; 2],
+    ray: RayDir,
+    expected_radius_px: f64,
+    steps: &RaySteps,
+    scratch: &mut Vec<f64>,
+) -> Option<EdgePoint> {
+    let params = &steps.params;
     if image.width() == 0 || image.height() == 0 || params.step_px <= 0.0 {
         return None;
     }
     let [c, s] = ray.unit;
     let step = params.step_px;
-    // Truncation of the value plus a half: `round` for these non-negative values, without a libm
-    // call (rounding instructions need SSE4.1, beyond the baseline target).
-    let steps_of = |d: f64| (d / step + 0.5) as isize;
-    let (search, near, far) = (
-        steps_of(params.search_half_px),
-        steps_of(params.level_near_px),
-        steps_of(params.level_far_px),
-    );
-    let (rim_near, half) = (
-        steps_of(params.rim_near_px),
-        steps_of(params.integral_half_px),
-    );
+    let (search, near, far) = (steps.search, steps.near, steps.far);
+    let (rim_near, half) = (steps.rim_near, steps.half);
     let reach = search + far.max(half + 1);
     // The profile's first sample may not pass the centre: keep `reach` samples inside.
     let t0 = (expected_radius_px - reach as f64 * step).max(0.0);
@@ -180,7 +220,7 @@ pub fn refine_ray(
     scratch.resize(count, 0.0);
     let last = count as isize - 1;
     // Steepest rise over one pixel (two steps apart at the default spacing).
-    let span = steps_of(0.5).max(1);
+    let span = steps.span.max(1);
     let (low, high) = (
         (centre_index - search).max(span),
         (centre_index + search).min(last - span),
@@ -211,7 +251,7 @@ pub fn refine_ray(
     samples.fill(in_chunks(searched.end.min(end)..end, count), scratch);
     let profile = scratch.as_slice();
     // The rim side stops short of a thin wall's outer edge.
-    let rim_far = steps_of(params.rim_far_px).clamp(1, far);
+    let rim_far = steps.rim_far.clamp(1, far);
     let (rim_near_out, rim_level_near) = (rim_near.min(rim_far - 1).max(0), near.min(rim_far));
     let inner_level = window_mean(profile, j - far, j - near);
     let outer_level = window_mean(profile, j + rim_level_near, j + rim_far);
