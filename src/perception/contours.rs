@@ -359,6 +359,7 @@ fn trace(
     };
     let first = step(start, first_dir);
     let last_column = width as i32 - 1;
+    let spare = state.len() - 1;
     let mut points = Vec::new();
     let mut current = start;
     let mut here = [start_x, start_y];
@@ -383,13 +384,27 @@ fn trace(
         // The east neighbour was passed, dark, before the next pixel was found.
         let east_dark = (back_dir + 7 - EAST) % 8 < found;
         let next = step(current, next_dir);
-        if east_dark || here[0] == last_column {
-            state[current] = MARKED_EAST;
-            label[current] = number;
-        } else if state[current] == UNVISITED {
-            state[current] = MARKED;
-            label[current] = number;
-        }
+        // Marked by selects, not branches (whether the east neighbour is dark changes from
+        // pixel to pixel, and mispredicted): a label that must not change is written to a
+        // spare byte's slot past the last row, which nothing reads.
+        let (mark_east, unvisited) = (
+            east_dark || here[0] == last_column,
+            state[current] == UNVISITED,
+        );
+        let old_state = state[current];
+        state[current] = if mark_east {
+            MARKED_EAST
+        } else if unvisited {
+            MARKED
+        } else {
+            old_state
+        };
+        let labelled = if mark_east || unvisited {
+            current
+        } else {
+            spare
+        };
+        label[labelled] = number;
         if next == start && current == first {
             return points;
         }
