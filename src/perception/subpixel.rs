@@ -120,11 +120,27 @@ impl EdgePoint {
 use crate::perception::ray_samples::RaySamples;
 pub use crate::perception::ray_samples::{sample_bilinear, sample_ray};
 
-/// Mean of `profile[from..=to]`, indices clamped to the profile.
-fn window_mean(profile: &[f64], from: isize, to: isize) -> f64 {
+/// `profile[from..=to]`, indices clamped to the profile, and where it starts.
+fn stretch(profile: &[f64], from: isize, to: isize) -> (usize, &[f64]) {
     let last = profile.len() as isize - 1;
     let (a, b) = (from.clamp(0, last) as usize, to.clamp(0, last) as usize);
-    profile[a..=b].iter().sum::<f64>() / (b - a + 1) as f64
+    (a, &profile[a..=b])
+}
+
+/// The sum of each of `stretches`, each added up in order from its first value as
+/// `iter().sum()` does (the same bits), all stepped together so that their chains of additions
+/// overlap rather than wait on one another.
+fn sums_together<const N: usize>(stretches: [&[f64]; N]) -> [f64; N] {
+    let longest = stretches.iter().map(|v| v.len()).max().unwrap_or(0);
+    let mut sums = [-0.0; N];
+    for i in 0..longest {
+        for (sum, values) in sums.iter_mut().zip(&stretches) {
+            if let Some(&v) = values.get(i) {
+                *sum += v;
+            }
+        }
+    }
+    sums
 }
 
 /// Locates the dark-to-bright edge on the ray from `centre` at `angle_rad` near
@@ -253,17 +269,24 @@ pub fn refine_ray_in_steps(
     // The rim side stops short of a thin wall's outer edge.
     let rim_far = steps.rim_far.clamp(1, far);
     let (rim_near_out, rim_level_near) = (rim_near.min(rim_far - 1).max(0), near.min(rim_far));
-    let inner_level = window_mean(profile, j - far, j - near);
-    let outer_level = window_mean(profile, j + rim_level_near, j + rim_far);
+    // The level windows, and the flanks fitted by lines so that a ramp (a stain's soft rim, a
+    // shadow, uneven light) does not bias the normalisation: all four sums at once.
+    let (inner_window, outer_window) = (
+        stretch(profile, j - far, j - near).1,
+        stretch(profile, j + rim_level_near, j + rim_far).1,
+    );
+    let flanks = [
+        stretch(profile, j - far, j - rim_near),
+        stretch(profile, j + rim_near_out, j + rim_far),
+    ];
+    let [inner_sum, outer_sum, inner_flank_sum, outer_flank_sum] =
+        sums_together([inner_window, outer_window, flanks[0].1, flanks[1].1]);
+    let inner_level = inner_sum / inner_window.len() as f64;
+    let outer_level = outer_sum / outer_window.len() as f64;
     if outer_level - inner_level < params.min_contrast {
         return None;
     }
-    // The flanks as lines, so that a ramp (a stain's soft rim, a shadow, uneven light) does not
-    // bias the normalisation.
-    let [inner, outer] = Flank::fit_both(
-        profile,
-        [(j - far, j - rim_near), (j + rim_near_out, j + rim_far)],
-    );
+    let [inner, outer] = Flank::fit_both(flanks, [inner_flank_sum, outer_flank_sum]);
     let (a, b) = ((j - half).max(0), (j + half.min(rim_far)).min(last));
     let mut integral = 0.0;
     for k in a..=b {
@@ -318,32 +341,21 @@ impl Flank {
     /// The line through `profile[from..=to]` (indices clamped to the profile).
     #[cfg(test)]
     fn fit(profile: &[f64], from: isize, to: isize) -> Self {
-        let [flank, _] = Self::fit_both(profile, [(from, to); 2]);
+        let values = stretch(profile, from, to);
+        let [sum] = sums_together([values.1]);
+        let [flank, _] = Self::fit_both([values; 2], [sum; 2]);
         flank
     }
 
-    /// The lines through `profile[from..=to]` for two `(from, to)` (indices clamped to the
-    /// profile), each with the bits of a fit of its own. Each fit is three chains of sums, one
-    /// after the other; stepping both fits' chains together lets them overlap.
-    fn fit_both(profile: &[f64], ranges: [(isize, isize); 2]) -> [Self; 2] {
-        let last = profile.len() as isize - 1;
-        let values = ranges.map(|(from, to)| {
-            let (a, b) = (from.clamp(0, last) as usize, to.clamp(0, last) as usize);
-            (a, &profile[a..=b])
-        });
+    /// The lines through two stretches of a profile (each with where it starts in the profile
+    /// and the sum of its values), each with the bits of a fit of its own. Each fit is chains of
+    /// sums, one after the other; stepping both fits' chains together lets them overlap.
+    fn fit_both(values: [(usize, &[f64]); 2], sums: [f64; 2]) -> [Self; 2] {
         let longest = values[0].1.len().max(values[1].1.len());
         let n = values.map(|(_, v)| v.len() as f64);
         let mean_offset = n.map(|n| (n - 1.0) / 2.0);
         // Sample `i` of both stretches, where the stretch has one.
         let pair = |i: usize| values.map(|(_, v)| v.get(i).copied());
-        let mut sums = [0.0; 2];
-        for i in 0..longest {
-            for (sum, v) in sums.iter_mut().zip(pair(i)) {
-                if let Some(v) = v {
-                    *sum += v;
-                }
-            }
-        }
         let mean_level = [sums[0] / n[0], sums[1] / n[1]];
         // The abscissae `i - mean_offset` are multiples of a half and their squares of a
         // quarter, so stepping them by one and summing their squares in closed form, n (n^2 - 1)
