@@ -34,7 +34,7 @@ use crate::perception::border_cut::{brighten_frame, cut_bore};
 use crate::perception::circle_fit::{fit_geometric, fit_kasa, raw_roundness};
 use crate::perception::contours::{BorderKind, Contour, binned_radii, find_contours};
 use crate::perception::error::PerceptionError;
-use crate::perception::filters::FilterMethod;
+use crate::perception::filters::{FilterMethod, median_3x3_with_histogram};
 use crate::perception::integer_edges::{canny_points, integer_fit};
 use crate::perception::rim::{RimParams, scan_rim};
 use crate::perception::robust_series::fit_series_robust;
@@ -42,6 +42,7 @@ use crate::perception::roundness::{DEFAULT_MAX_UPR, filtered_roundness_bridged, 
 use crate::perception::subpixel::{EdgePoint, RayDir, RayParams, RaySteps, refine_ray_in_steps};
 use crate::perception::threshold::{
     ThresholdMethod, adaptive_mean_threshold_floored, brighten_above, otsu_level,
+    otsu_level_of_histogram,
 };
 use image::GrayImage;
 use std::f64::consts::TAU;
@@ -287,7 +288,21 @@ impl BoreDetector {
                 min_side_px: MIN_IMAGE_SIDE_PX,
             });
         }
-        let filtered = self.params.filter.apply(image);
+        // Otsu's level needs the filtered image's histogram: the 3x3 median counts it as it
+        // writes its output.
+        let (filtered, histogram) = match (self.params.filter, self.params.bright_above_otsu) {
+            (FilterMethod::Median { radius_px: 1 }, true) => {
+                let (filtered, histogram) = median_3x3_with_histogram(image);
+                (filtered, Some(histogram))
+            }
+            (filter, _) => (filter.apply(image), None),
+        };
+        let otsu_level = |filtered: &GrayImage| match &histogram {
+            Some(histogram) => {
+                otsu_level_of_histogram(histogram, filtered.width() * filtered.height())
+            }
+            None => otsu_level(filtered),
+        };
         let mut binary = match (self.params.threshold, self.params.bright_above_otsu) {
             (
                 ThresholdMethod::AdaptiveMean {
