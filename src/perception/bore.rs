@@ -29,21 +29,19 @@
 //! walls down to a few pixels are measured. Bores cut by the image border are never fitted as
 //! if whole: [`BoreDetector::detect_report`] lists them with the reason they were skipped.
 
+use crate::perception::border_cut::cut_bore;
 pub use crate::perception::border_cut::{BoreReport, SkipReason, SkippedBore};
-use crate::perception::border_cut::{brighten_frame, cut_bore};
 use crate::perception::circle_fit::{fit_geometric, fit_kasa, raw_roundness};
 use crate::perception::contours::{BorderKind, Contour, binned_radii, find_contours};
 use crate::perception::error::PerceptionError;
-use crate::perception::filters::{FilterMethod, median_3x3_with_histogram};
+use crate::perception::filters::FilterMethod;
 use crate::perception::integer_edges::{canny_points, integer_fit};
 use crate::perception::rim::{RimParams, scan_rim};
 use crate::perception::robust_series::fit_series_robust;
 use crate::perception::roundness::{DEFAULT_MAX_UPR, filtered_roundness_bridged, median_of};
+use crate::perception::segment::segment;
 use crate::perception::subpixel::{EdgePoint, RayDir, RayParams, RaySteps, refine_ray_in_steps};
-use crate::perception::threshold::{
-    ThresholdMethod, adaptive_mean_threshold_floored, brighten_above, otsu_level,
-    otsu_level_of_histogram,
-};
+use crate::perception::threshold::ThresholdMethod;
 use image::GrayImage;
 use std::f64::consts::TAU;
 
@@ -288,44 +286,7 @@ impl BoreDetector {
                 min_side_px: MIN_IMAGE_SIDE_PX,
             });
         }
-        // Otsu's level needs the filtered image's histogram: the 3x3 median counts it as it
-        // writes its output.
-        let (filtered, histogram) = match (self.params.filter, self.params.bright_above_otsu) {
-            (FilterMethod::Median { radius_px: 1 }, true) => {
-                let (filtered, histogram) = median_3x3_with_histogram(image);
-                (filtered, Some(histogram))
-            }
-            (filter, _) => (filter.apply(image), None),
-        };
-        let otsu_level = |filtered: &GrayImage| match &histogram {
-            Some(histogram) => {
-                otsu_level_of_histogram(histogram, filtered.width() * filtered.height())
-            }
-            None => otsu_level(filtered),
-        };
-        let mut binary = match (self.params.threshold, self.params.bright_above_otsu) {
-            (
-                ThresholdMethod::AdaptiveMean {
-                    block_radius_px,
-                    delta,
-                },
-                true,
-            ) => adaptive_mean_threshold_floored(
-                &filtered,
-                block_radius_px,
-                delta,
-                otsu_level(&filtered),
-            ),
-            (method, true) => {
-                let mut binary = method.apply(&filtered);
-                brighten_above(&mut binary, &filtered, otsu_level(&filtered));
-                binary
-            }
-            (method, false) => method.apply(&filtered),
-        };
-        // A bright frame closes a bore cut by the border into a hole whose border runs along
-        // the frame, so it can be recognised and skipped rather than lost without a word.
-        brighten_frame(&mut binary);
+        let (filtered, binary) = segment(&self.params, image);
         let contours = find_contours(&binary);
         Ok(self.report_contours(&filtered, &binary, &contours))
     }
