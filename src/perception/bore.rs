@@ -29,8 +29,8 @@
 //! walls down to a few pixels are measured. Bores cut by the image border are never fitted as
 //! if whole: [`BoreDetector::detect_report`] lists them with the reason they were skipped.
 
+use crate::perception::border_cut::cut_bore;
 pub use crate::perception::border_cut::{BoreReport, SkipReason, SkippedBore};
-use crate::perception::border_cut::{brighten_frame, cut_bore};
 use crate::perception::circle_fit::{fit_geometric, fit_kasa, raw_roundness};
 use crate::perception::contours::{BorderKind, Contour, binned_radii, find_contours};
 use crate::perception::error::PerceptionError;
@@ -39,10 +39,9 @@ use crate::perception::integer_edges::{canny_points, integer_fit};
 use crate::perception::rim::{RimParams, scan_rim};
 use crate::perception::robust_series::fit_series_robust;
 use crate::perception::roundness::{DEFAULT_MAX_UPR, filtered_roundness_bridged, median_of};
-use crate::perception::subpixel::{EdgePoint, RayDir, RayParams, refine_ray};
-use crate::perception::threshold::{
-    ThresholdMethod, adaptive_mean_threshold_floored, brighten_above, otsu_level,
-};
+use crate::perception::segment::segment;
+use crate::perception::subpixel::{EdgePoint, RayDir, RayParams, RaySteps, refine_ray_in_steps};
+use crate::perception::threshold::ThresholdMethod;
 use image::GrayImage;
 use std::f64::consts::TAU;
 
@@ -287,30 +286,7 @@ impl BoreDetector {
                 min_side_px: MIN_IMAGE_SIDE_PX,
             });
         }
-        let filtered = self.params.filter.apply(image);
-        let mut binary = match (self.params.threshold, self.params.bright_above_otsu) {
-            (
-                ThresholdMethod::AdaptiveMean {
-                    block_radius_px,
-                    delta,
-                },
-                true,
-            ) => adaptive_mean_threshold_floored(
-                &filtered,
-                block_radius_px,
-                delta,
-                otsu_level(&filtered),
-            ),
-            (method, true) => {
-                let mut binary = method.apply(&filtered);
-                brighten_above(&mut binary, &filtered, otsu_level(&filtered));
-                binary
-            }
-            (method, false) => method.apply(&filtered),
-        };
-        // A bright frame closes a bore cut by the border into a hole whose border runs along
-        // the frame, so it can be recognised and skipped rather than lost without a word.
-        brighten_frame(&mut binary);
+        let (filtered, binary) = segment(&self.params, image);
         let contours = find_contours(&binary);
         Ok(self.report_contours(&filtered, &binary, &contours))
     }
@@ -456,11 +432,12 @@ impl BoreDetector {
             None => p.rays,
         };
         let mut scratch = Vec::new();
+        let steps = RaySteps::new(&ray_params);
         let edges: Vec<EdgePoint> = rays
             .iter()
             .filter_map(|&ray| {
                 let rho = outline.radius_along(ray.unit);
-                refine_ray(filtered, coarse.centre, ray, rho, &ray_params, &mut scratch)
+                refine_ray_in_steps(filtered, coarse.centre, ray, rho, &steps, &mut scratch)
             })
             .collect();
         if (edges.len() as f64) < p.min_valid_share * ray_count as f64 {

@@ -5,6 +5,7 @@
 //! "dark bore inside a bright rim" shape the bore detector looks for.
 
 use crate::perception::circle_fit::distance;
+use crate::perception::contour_scan::quiet_run;
 use image::GrayImage;
 use std::f64::consts::TAU;
 
@@ -43,13 +44,13 @@ const STEPS: [(isize, isize); 8] = [
 const EAST: usize = 4;
 
 /// Pixel states of the working copy.
-const BACKGROUND: u8 = 0;
+pub(crate) const BACKGROUND: u8 = 0;
 /// Bright, not on a border traced so far.
-const UNVISITED: u8 = 1;
+pub(crate) const UNVISITED: u8 = 1;
 /// On a traced border, with a bright east neighbour (Suzuki and Abe's positive label).
-const MARKED: u8 = 2;
+pub(crate) const MARKED: u8 = 2;
 /// On a traced border whose east neighbour is dark (their negative label): no hole starts here.
-const MARKED_EAST: u8 = 3;
+pub(crate) const MARKED_EAST: u8 = 3;
 
 /// All borders of the bright (non-zero) regions of a binary image, in raster order of their
 /// starting pixels; the image is taken to be surrounded by dark pixels.
@@ -102,23 +103,57 @@ fn follow_all(
     w: usize,
     h: usize,
 ) -> Vec<Contour> {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the function only requires AVX2, which the CPU was just found to have.
+        return unsafe { follow_all_avx2(state, label, stride, w, h) };
+    }
+    follow_all_kernel(state, label, stride, w, h, false)
+}
+
+/// [`follow_all_kernel`] compiled for AVX2, its block skips inlined.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn follow_all_avx2(
+    state: &mut [u8],
+    label: &mut [u32],
+    stride: usize,
+    w: usize,
+    h: usize,
+) -> Vec<Contour> {
+    follow_all_kernel(state, label, stride, w, h, true)
+}
+
+/// The body of [`follow_all`]; `avx2` only from the AVX2 build.
+#[inline(always)]
+fn follow_all_kernel(
+    state: &mut [u8],
+    label: &mut [u32],
+    stride: usize,
+    w: usize,
+    h: usize,
+    avx2: bool,
+) -> Vec<Contour> {
     let offsets: [isize; 8] = STEPS.map(|(dx, dy)| dx + dy * stride as isize);
-    const ZEROS: u64 = 0;
-    const ONES: u64 = 0x0101_0101_0101_0101;
 
     let mut contours: Vec<Contour> = Vec::new();
     for y in 1..=h {
-        // The frame is border number 1: "no enclosing border".
-        let mut last_border: u32 = 1;
+        // The last traced pixel the scan passed on this row; its border number is the last
+        // border seen (the frame, number 1, before any). Read only where a border starts: no
+        // trace runs between passing that pixel and the next start, so it still holds the
+        // number it held when passed.
+        let mut last_marked: Option<usize> = None;
         let mut x = 1;
+        let row_end = y * stride + w + 1;
         while x <= w {
             let p = y * stride + x;
-            if x + 8 <= w + 1 {
-                let word = u64::from_le_bytes(state[p..p + 8].try_into().unwrap_or([1; 8]));
-                if word == ZEROS || (word == ONES && state[p - 1] != 0 && state[p + 8] != 0) {
-                    x += 8;
-                    continue;
-                }
+            let quiet = quiet_run(avx2, state, p, row_end);
+            if let Some(marked) = quiet.last_marked {
+                last_marked = Some(marked);
+            }
+            if quiet.pixels > 0 {
+                x += quiet.pixels;
+                continue;
             }
             let here = state[p];
             if here == BACKGROUND {
@@ -129,13 +164,14 @@ fn follow_all(
                 Some((0, BorderKind::Outer))
             } else if here != MARKED_EAST && state[p + 1] == BACKGROUND {
                 if here == MARKED {
-                    last_border = label[p];
+                    last_marked = Some(p);
                 }
                 Some((EAST, BorderKind::Hole))
             } else {
                 None
             };
             if let Some((from_dir, kind)) = start {
+                let last_border = last_marked.map_or(1, |m| label[m]);
                 let number = contours.len() as u32 + 2;
                 let parent = if last_border > 1 {
                     let index = (last_border - 2) as usize;
@@ -156,7 +192,7 @@ fn follow_all(
                 });
             }
             if state[p] != UNVISITED {
-                last_border = label[p];
+                last_marked = Some(p);
             }
             x += 1;
         }
@@ -192,6 +228,7 @@ fn trace(
     };
     let first = step(start, first_dir);
     let last_column = width as i32 - 1;
+    let spare = state.len() - 1;
     let mut points = Vec::new();
     let mut current = start;
     let mut here = [start_x, start_y];
@@ -199,27 +236,44 @@ fn trace(
     let mut back_dir = first_dir;
     loop {
         points.push(here);
-        // Counter-clockwise from the one after the previous pixel, to the next bright one.
-        let mut east_dark = false;
-        let mut next_dir = back_dir;
-        for k in 1..=8 {
-            let d = (back_dir + 8 - k) % 8;
-            if state[step(current, d)] != BACKGROUND {
-                next_dir = d;
-                break;
-            }
-            if d == EAST {
-                east_dark = true;
-            }
+        // Counter-clockwise from the one after the previous pixel, to the next bright one: the
+        // neighbours as bits (bit `7 - d` for direction `d`), rotated so that bit `i` is
+        // direction `back_dir - 1 - i`; the first bright one is then the lowest set bit. One
+        // branch-free step where testing neighbour after neighbour mispredicted.
+        let mut reversed = 0u8;
+        for (d, &offset) in offsets.iter().enumerate() {
+            let bright = state[current.wrapping_add_signed(offset)] != BACKGROUND;
+            reversed |= u8::from(bright) << (7 - d);
         }
+        let searched = reversed.rotate_right((8 - back_dir as u32) % 8);
+        // All eight dark (never on a border: the previous pixel is bright) ends the search
+        // back at `back_dir`, every direction passed.
+        let found = searched.trailing_zeros() as usize;
+        let next_dir = (back_dir + 7 - found.min(7)) % 8;
+        // The east neighbour was passed, dark, before the next pixel was found.
+        let east_dark = (back_dir + 7 - EAST) % 8 < found;
         let next = step(current, next_dir);
-        if east_dark || here[0] == last_column {
-            state[current] = MARKED_EAST;
-            label[current] = number;
-        } else if state[current] == UNVISITED {
-            state[current] = MARKED;
-            label[current] = number;
-        }
+        // Marked by selects, not branches (whether the east neighbour is dark changes from
+        // pixel to pixel, and mispredicted): a label that must not change is written to a
+        // spare byte's slot past the last row, which nothing reads.
+        let (mark_east, unvisited) = (
+            east_dark || here[0] == last_column,
+            state[current] == UNVISITED,
+        );
+        let old_state = state[current];
+        state[current] = if mark_east {
+            MARKED_EAST
+        } else if unvisited {
+            MARKED
+        } else {
+            old_state
+        };
+        let labelled = if mark_east || unvisited {
+            current
+        } else {
+            spare
+        };
+        label[labelled] = number;
         if next == start && current == first {
             return points;
         }

@@ -4,6 +4,7 @@
 //! (`benches/metrology.rs`, stage `median3_imageproc` vs `median3`) shows imageproc's sliding
 //! histogram median is the pipeline's bottleneck at radius 1; imageproc stays the oracle in tests.
 
+use crate::perception::threshold::HistogramTables;
 use image::GrayImage;
 
 /// A denoising filter and its size.
@@ -75,24 +76,38 @@ pub fn gaussian_filter(image: &GrayImage, sigma_px: f32) -> GrayImage {
 /// min/max over rows so the compiler vectorises it, for AVX2 where the CPU has it (chosen at run
 /// time; integer min/max give the same bytes either way, tested).
 pub fn median_3x3(image: &GrayImage) -> GrayImage {
+    median_3x3_counted(image, None)
+}
+
+/// [`median_3x3`] and the grey-level histogram of its output (for Otsu's level), counted as
+/// each stretch of the output is written: the counting, scalar stores, overlaps the filter's
+/// vector work instead of following it in a pass of its own.
+pub fn median_3x3_with_histogram(image: &GrayImage) -> (GrayImage, [u32; 256]) {
+    let mut histogram = HistogramTables::new();
+    let filtered = median_3x3_counted(image, Some(&mut histogram));
+    (filtered, histogram.total())
+}
+
+/// [`median_3x3`], counting its output into `histogram` when given.
+fn median_3x3_counted(image: &GrayImage, histogram: Option<&mut HistogramTables>) -> GrayImage {
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx2") {
         // SAFETY: the function only requires AVX2, which the CPU was just found to have.
-        return unsafe { median_3x3_avx2(image) };
+        return unsafe { median_3x3_avx2(image, histogram) };
     }
-    median_3x3_kernel(image)
+    median_3x3_kernel(image, histogram)
 }
 
 /// [`median_3x3_kernel`] compiled for AVX2.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-fn median_3x3_avx2(image: &GrayImage) -> GrayImage {
-    median_3x3_kernel(image)
+fn median_3x3_avx2(image: &GrayImage, histogram: Option<&mut HistogramTables>) -> GrayImage {
+    median_3x3_kernel(image, histogram)
 }
 
 /// The body of [`median_3x3`], inlined into each instruction-set variant.
 #[inline(always)]
-fn median_3x3_kernel(image: &GrayImage) -> GrayImage {
+fn median_3x3_kernel(image: &GrayImage, mut histogram: Option<&mut HistogramTables>) -> GrayImage {
     let (w, h) = (image.width() as usize, image.height() as usize);
     let mut out = GrayImage::new(image.width(), image.height());
     if w == 0 || h == 0 {
@@ -135,6 +150,9 @@ fn median_3x3_kernel(image: &GrayImage) -> GrayImage {
             let med_mid = m0.min(m1).max(m0.max(m1).min(m2));
             *o = median3(max_lo, med_mid, min_hi);
         }
+        if let Some(histogram) = histogram.as_deref_mut() {
+            histogram.add(out_row);
+        }
     }
     out
 }
@@ -156,7 +174,7 @@ mod tests {
     proptest! {
         #[test]
         fn median_3x3_matches_imageproc(
-            (w, h, data) in (1u32..24, 1u32..24).prop_flat_map(|(w, h)| {
+            (w, h, data) in (1u32..150, 1u32..24).prop_flat_map(|(w, h)| {
                 (Just(w), Just(h), proptest::collection::vec(any::<u8>(), (w * h) as usize))
             })
         ) {
@@ -165,8 +183,16 @@ mod tests {
             let oracle = imageproc::filter::median_filter(&image, 1, 1);
             prop_assert_eq!(ours.as_raw(), oracle.as_raw());
             // The baseline build too, whichever the dispatch picked.
-            let portable = median_3x3_kernel(&image);
+            let portable = median_3x3_kernel(&image, None);
             prop_assert_eq!(portable.as_raw(), oracle.as_raw());
+            // Counted as written: the same image, and its histogram.
+            let (counted, histogram) = median_3x3_with_histogram(&image);
+            prop_assert_eq!(counted.as_raw(), oracle.as_raw());
+            let mut expected = [0u32; 256];
+            for &p in oracle.as_raw() {
+                expected[usize::from(p)] += 1;
+            }
+            prop_assert_eq!(histogram, expected);
         }
 
         #[test]

@@ -51,6 +51,97 @@ pub fn sample_ray(
     ray.fill(0..count, out);
 }
 
+/// Bilinear samples of `image` at the points `(xs[i], ys[i])` into `out[i]`, each equal to
+/// [`sample_bilinear`] there: four at a time with AVX2 where the CPU has it and all four lie
+/// strictly inside the last pixel row and column, one by one otherwise.
+pub fn sample_points(image: &GrayImage, xs: &[f64], ys: &[f64], out: &mut [f64]) {
+    let n = xs.len().min(ys.len()).min(out.len());
+    let (xs, ys, out) = (&xs[..n], &ys[..n], &mut out[..n]);
+    let mut done = 0;
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2")
+        && image.width() >= 2
+        && image.height() >= 2
+        && i32::try_from(image.as_raw().len()).is_ok()
+    {
+        // SAFETY: the function only requires AVX2, which the CPU was just found to have.
+        done = unsafe { sample_points_avx2(image, xs, ys, out) };
+    }
+    for ((o, &x), &y) in out.iter_mut().zip(xs).zip(ys).skip(done) {
+        *o = sample_bilinear(image, x, y);
+    }
+}
+
+/// The whole chunks of four of [`sample_points`] with AVX2 (the same IEEE operations in the
+/// same order as [`sample_bilinear`] on each lane: the same bits); returns how many points it
+/// sampled. The image must be at least 2x2 and under 2^31 bytes.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn sample_points_avx2(image: &GrayImage, xs: &[f64], ys: &[f64], out: &mut [f64]) -> usize {
+    use std::arch::x86_64::*;
+    let raw = image.as_raw();
+    let (w, h) = (image.width() as usize, image.height() as usize);
+    let last_start = raw.len().saturating_sub(w + 2) as i32;
+    let (low, high) = (_mm_setzero_si128(), _mm_set1_epi32(last_start));
+    let (width, byte) = (_mm_set1_epi32(w as i32), _mm_set1_epi32(0xff));
+    let bottom_offset = _mm_set1_epi32(w as i32 - 2);
+    let zero = _mm256_setzero_pd();
+    let (x_end, y_end) = (
+        _mm256_set1_pd(w as f64 - 1.0),
+        _mm256_set1_pd(h as f64 - 1.0),
+    );
+    let mut done = 0;
+    for ((x, y), o) in xs
+        .chunks_exact(4)
+        .zip(ys.chunks_exact(4))
+        .zip(out.chunks_exact_mut(4))
+    {
+        // SAFETY: each chunk holds exactly four `f64`.
+        let (x, y) = unsafe { (_mm256_loadu_pd(x.as_ptr()), _mm256_loadu_pd(y.as_ptr())) };
+        // Strictly inside: every sample has its four neighbours without clamping, where
+        // `sample_bilinear`'s clamps change nothing.
+        let inside = _mm256_and_pd(
+            _mm256_and_pd(
+                _mm256_cmp_pd::<_CMP_GE_OQ>(x, zero),
+                _mm256_cmp_pd::<_CMP_GE_OQ>(y, zero),
+            ),
+            _mm256_and_pd(
+                _mm256_cmp_pd::<_CMP_LT_OQ>(x, x_end),
+                _mm256_cmp_pd::<_CMP_LT_OQ>(y, y_end),
+            ),
+        );
+        if _mm256_movemask_pd(inside) != 0b1111 {
+            break;
+        }
+        let (x0, y0) = (_mm256_cvttpd_epi32(x), _mm256_cvttpd_epi32(y));
+        let fx = _mm256_sub_pd(x, _mm256_cvtepi32_pd(x0));
+        let fy = _mm256_sub_pd(y, _mm256_cvtepi32_pd(y0));
+        let start = _mm_add_epi32(_mm_mullo_epi32(y0, width), x0);
+        let start = _mm_min_epi32(_mm_max_epi32(start, low), high);
+        // SAFETY: `start` lies in `[0, len - w - 2]`, so the four bytes read from `start` and
+        // from `start + w - 2` are inside `raw`.
+        let (top, bottom) = unsafe {
+            (
+                _mm_i32gather_epi32::<1>(raw.as_ptr().cast(), start),
+                _mm_i32gather_epi32::<1>(raw.as_ptr().cast(), _mm_add_epi32(start, bottom_offset)),
+            )
+        };
+        let level = |v: __m128i| _mm256_cvtepi32_pd(_mm_and_si128(v, byte));
+        let (p00, p01) = (level(top), level(_mm_srli_epi32::<8>(top)));
+        let (p10, p11) = (
+            level(_mm_srli_epi32::<16>(bottom)),
+            level(_mm_srli_epi32::<24>(bottom)),
+        );
+        let top = _mm256_add_pd(p00, _mm256_mul_pd(fx, _mm256_sub_pd(p01, p00)));
+        let bottom = _mm256_add_pd(p10, _mm256_mul_pd(fx, _mm256_sub_pd(p11, p10)));
+        let value = _mm256_add_pd(top, _mm256_mul_pd(fy, _mm256_sub_pd(bottom, top)));
+        // SAFETY: `o` holds exactly four `f64`.
+        unsafe { _mm256_storeu_pd(o.as_mut_ptr(), value) };
+        done += 4;
+    }
+    done
+}
+
 /// Where the samples of one ray lie: sample `i` is at `centre + (from + step i) dir`.
 pub(crate) struct RaySamples<'a> {
     /// The sampled image.
@@ -225,6 +316,35 @@ mod tests {
                 let expected =
                     sample_bilinear(&image, centre[0] + t * dir[0], centre[1] + t * dir[1]);
                 assert!((v - expected).abs() < 1e-9, "sample {i}: {v} vs {expected}");
+            }
+        }
+    }
+
+    #[test]
+    fn point_samples_have_the_bits_of_bilinear_samples_inside_and_across_the_border() {
+        let mut rng = crate::rng::SimRng::new(9);
+        let (w, h) = (97u32, 61u32);
+        let data: Vec<u8> = (0..w * h).map(|_| (rng.next_u64() % 256) as u8).collect();
+        let image = GrayImage::from_raw(w, h, data).unwrap_or_else(|| GrayImage::new(1, 1));
+        for trial in 0..300 {
+            let n = (rng.next_u64() % 23) as usize;
+            // Mostly inside, some on the last row and column exactly, some outside.
+            let coordinate = |rng: &mut crate::rng::SimRng, side: u32| match rng.next_u64() % 8 {
+                0 => f64::from(side - 1),
+                1 => rng.range(-3.0, 0.0),
+                2 => rng.range(f64::from(side - 1), f64::from(side) + 3.0),
+                _ => rng.range(0.0, f64::from(side - 1)),
+            };
+            let xs: Vec<f64> = (0..n).map(|_| coordinate(&mut rng, w)).collect();
+            let ys: Vec<f64> = (0..n).map(|_| coordinate(&mut rng, h)).collect();
+            let mut out = vec![f64::NAN; n];
+            sample_points(&image, &xs, &ys, &mut out);
+            for i in 0..n {
+                assert_eq!(
+                    out[i].to_bits(),
+                    sample_bilinear(&image, xs[i], ys[i]).to_bits(),
+                    "trial {trial} point {i}"
+                );
             }
         }
     }

@@ -14,6 +14,7 @@
 //! The same walk measures the wall's width, which sets how far the edge refinement may reach
 //! onto the rim ([`crate::perception::subpixel::RayParams::within_wall`]).
 
+use crate::perception::ray_samples::sample_points;
 use crate::perception::roundness::median_of;
 use crate::perception::subpixel::sample_bilinear;
 use image::GrayImage;
@@ -46,6 +47,9 @@ impl Default for RimParams {
         }
     }
 }
+
+/// Steps of the rim walk sampled together.
+const WALK_CHUNK: usize = 8;
 
 /// What the walk found.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -124,21 +128,37 @@ pub fn scan_rim(
         let mut near = f64::NEG_INFINITY;
         let mut highest = f64::NEG_INFINITY;
         let mut ended = None;
-        while t <= limit {
-            let (x, y) = (centre[0] + t * c, centre[1] + t * s);
-            if !inside(x, y) {
+        // The walk's positions a chunk at a time (to its limit or the image border), sampled
+        // together, then read in order: a chunk reads at most a few samples past the end.
+        let [mut xs, mut ys, mut ts, mut levels] = [[0.0; WALK_CHUNK]; 4];
+        'walk: loop {
+            let mut n = 0;
+            let mut stopped = false;
+            while n < WALK_CHUNK {
+                let within = t <= limit;
+                let (x, y) = (centre[0] + t * c, centre[1] + t * s);
+                if !within || !inside(x, y) {
+                    stopped = true;
+                    break;
+                }
+                (xs[n], ys[n], ts[n]) = (x, y, t);
+                n += 1;
+                t += 1.0;
+            }
+            sample_points(filtered, &xs[..n], &ys[..n], &mut levels[..n]);
+            for (&level, &t) in levels.iter().zip(&ts).take(n) {
+                if level < end_level {
+                    ended = Some(t);
+                    break 'walk;
+                }
+                if t < r + params.start_px + 2.0 {
+                    near = near.max(level);
+                }
+                highest = highest.max(level);
+            }
+            if stopped {
                 break;
             }
-            let level = sample_bilinear(filtered, x, y);
-            if level < end_level {
-                ended = Some(t);
-                break;
-            }
-            if t < r + params.start_px + 2.0 {
-                near = near.max(level);
-            }
-            highest = highest.max(level);
-            t += 1.0;
         }
         if !near.is_finite() {
             continue;

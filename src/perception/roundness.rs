@@ -185,17 +185,11 @@ fn filtered_roundness_kernel(
         }
         columns.insert(0, first);
     }
-    // The same values point by point (for the quadrature sums).
-    let mut basis = vec![(0.0f64, 0.0f64); n * k_max];
-    for (k, column) in columns.iter().enumerate() {
-        let (cos_k, sin_k) = column.split_at(n);
-        for (b, (&c, &s)) in basis[k..]
-            .iter_mut()
-            .step_by(k_max)
-            .zip(cos_k.iter().zip(sin_k))
-        {
-            *b = (c, s);
-        }
+    // The same values point by point (for the quadrature sums), written in order: no zeroing
+    // first, no stride through the table.
+    let mut basis = Vec::with_capacity(n * k_max);
+    for i in 0..n {
+        basis.extend(columns.iter().map(|column| (column[i], column[n + i])));
     }
     let mut mean_radius = polar.iter().map(|p| p.1).sum::<f64>() / n as f64;
     let mut harmonics = vec![(0.0f64, 0.0f64); k_max];

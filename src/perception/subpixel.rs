@@ -120,11 +120,27 @@ impl EdgePoint {
 use crate::perception::ray_samples::RaySamples;
 pub use crate::perception::ray_samples::{sample_bilinear, sample_ray};
 
-/// Mean of `profile[from..=to]`, indices clamped to the profile.
-fn window_mean(profile: &[f64], from: isize, to: isize) -> f64 {
+/// `profile[from..=to]`, indices clamped to the profile, and where it starts.
+fn stretch(profile: &[f64], from: isize, to: isize) -> (usize, &[f64]) {
     let last = profile.len() as isize - 1;
     let (a, b) = (from.clamp(0, last) as usize, to.clamp(0, last) as usize);
-    profile[a..=b].iter().sum::<f64>() / (b - a + 1) as f64
+    (a, &profile[a..=b])
+}
+
+/// The sum of each of `stretches`, each added up in order from its first value as
+/// `iter().sum()` does (the same bits), all stepped together so that their chains of additions
+/// overlap rather than wait on one another.
+fn sums_together<const N: usize>(stretches: [&[f64]; N]) -> [f64; N] {
+    let longest = stretches.iter().map(|v| v.len()).max().unwrap_or(0);
+    let mut sums = [-0.0; N];
+    for i in 0..longest {
+        for (sum, values) in sums.iter_mut().zip(&stretches) {
+            if let Some(&v) = values.get(i) {
+                *sum += v;
+            }
+        }
+    }
+    sums
 }
 
 /// Locates the dark-to-bright edge on the ray from `centre` at `angle_rad` near
@@ -147,23 +163,63 @@ pub fn refine_ray(
     params: &RayParams,
     scratch: &mut Vec<f64>,
 ) -> Option<EdgePoint> {
+    let steps = RaySteps::new(params);
+    refine_ray_in_steps(image, centre, ray, expected_radius_px, &steps, scratch)
+}
+
+/// A [`RayParams`]' distances in samples, worked out once for all the rays of a bore.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RaySteps {
+    /// The parameters.
+    params: RayParams,
+    /// `search_half_px`, `level_near_px`, `level_far_px`, `rim_near_px`, `integral_half_px`,
+    /// `rim_far_px` and half a pixel, in samples.
+    search: isize,
+    near: isize,
+    far: isize,
+    rim_near: isize,
+    half: isize,
+    rim_far: isize,
+    span: isize,
+}
+
+impl RaySteps {
+    /// The distances of `params` in samples.
+    pub fn new(params: &RayParams) -> Self {
+        let step = params.step_px;
+        // Truncation of the value plus a half: `round` for these non-negative values, without a
+        // libm call (rounding instructions need SSE4.1, beyond the baseline target).
+        let steps_of = |d: f64| (d / step + 0.5) as isize;
+        Self {
+            params: *params,
+            search: steps_of(params.search_half_px),
+            near: steps_of(params.level_near_px),
+            far: steps_of(params.level_far_px),
+            rim_near: steps_of(params.rim_near_px),
+            half: steps_of(params.integral_half_px),
+            rim_far: steps_of(params.rim_far_px),
+            span: steps_of(0.5),
+        }
+    }
+}
+
+/// [`refine_ray`] with the parameters' distances in samples worked out beforehand.
+pub fn refine_ray_in_steps(
+    image: &GrayImage,
+    centre: [f64; 2],
+    ray: RayDir,
+    expected_radius_px: f64,
+    steps: &RaySteps,
+    scratch: &mut Vec<f64>,
+) -> Option<EdgePoint> {
+    let params = &steps.params;
     if image.width() == 0 || image.height() == 0 || params.step_px <= 0.0 {
         return None;
     }
     let [c, s] = ray.unit;
     let step = params.step_px;
-    // Truncation of the value plus a half: `round` for these non-negative values, without a libm
-    // call (rounding instructions need SSE4.1, beyond the baseline target).
-    let steps_of = |d: f64| (d / step + 0.5) as isize;
-    let (search, near, far) = (
-        steps_of(params.search_half_px),
-        steps_of(params.level_near_px),
-        steps_of(params.level_far_px),
-    );
-    let (rim_near, half) = (
-        steps_of(params.rim_near_px),
-        steps_of(params.integral_half_px),
-    );
+    let (search, near, far) = (steps.search, steps.near, steps.far);
+    let (rim_near, half) = (steps.rim_near, steps.half);
     let reach = search + far.max(half + 1);
     // The profile's first sample may not pass the centre: keep `reach` samples inside.
     let t0 = (expected_radius_px - reach as f64 * step).max(0.0);
@@ -180,7 +236,7 @@ pub fn refine_ray(
     scratch.resize(count, 0.0);
     let last = count as isize - 1;
     // Steepest rise over one pixel (two steps apart at the default spacing).
-    let span = steps_of(0.5).max(1);
+    let span = steps.span.max(1);
     let (low, high) = (
         (centre_index - search).max(span),
         (centre_index + search).min(last - span),
@@ -192,14 +248,16 @@ pub fn refine_ray(
     // first the searched stretch, then what the windows need beyond it.
     let searched = in_chunks((low - span) as usize..(high + span + 1) as usize, count);
     samples.fill(searched.clone(), scratch);
-    let mut best: Option<(isize, f64)> = None;
+    // The first steepest positive rise, kept by selects rather than branches (which
+    // mispredicted on noisy profiles): a rise must beat zero, then every later one the best.
+    let (mut best, mut best_rise) = (None, 0.0);
     for j in low..=high {
         let rise = scratch[(j + span) as usize] - scratch[(j - span) as usize];
-        if rise > 0.0 && best.is_none_or(|(_, b)| rise > b) {
-            best = Some((j, rise));
-        }
+        let steeper = rise > best_rise;
+        best = if steeper { Some(j) } else { best };
+        best_rise = if steeper { rise } else { best_rise };
     }
-    let (j, _) = best?;
+    let j = best?;
     let wing = far.max(near).max(rim_near).max(half);
     let (first, end) = (
         (j - wing).max(0) as usize,
@@ -208,19 +266,27 @@ pub fn refine_ray(
     samples.fill(in_chunks(first..searched.start.max(first), count), scratch);
     samples.fill(in_chunks(searched.end.min(end)..end, count), scratch);
     let profile = scratch.as_slice();
-    let (j, _) = best?;
     // The rim side stops short of a thin wall's outer edge.
-    let rim_far = steps_of(params.rim_far_px).clamp(1, far);
+    let rim_far = steps.rim_far.clamp(1, far);
     let (rim_near_out, rim_level_near) = (rim_near.min(rim_far - 1).max(0), near.min(rim_far));
-    let inner_level = window_mean(profile, j - far, j - near);
-    let outer_level = window_mean(profile, j + rim_level_near, j + rim_far);
+    // The level windows, and the flanks fitted by lines so that a ramp (a stain's soft rim, a
+    // shadow, uneven light) does not bias the normalisation: all four sums at once.
+    let (inner_window, outer_window) = (
+        stretch(profile, j - far, j - near).1,
+        stretch(profile, j + rim_level_near, j + rim_far).1,
+    );
+    let flanks = [
+        stretch(profile, j - far, j - rim_near),
+        stretch(profile, j + rim_near_out, j + rim_far),
+    ];
+    let [inner_sum, outer_sum, inner_flank_sum, outer_flank_sum] =
+        sums_together([inner_window, outer_window, flanks[0].1, flanks[1].1]);
+    let inner_level = inner_sum / inner_window.len() as f64;
+    let outer_level = outer_sum / outer_window.len() as f64;
     if outer_level - inner_level < params.min_contrast {
         return None;
     }
-    // The flanks as lines, so that a ramp (a stain's soft rim, a shadow, uneven light) does not
-    // bias the normalisation.
-    let inner = Flank::fit(profile, j - far, j - rim_near);
-    let outer = Flank::fit(profile, j + rim_near_out, j + rim_far);
+    let [inner, outer] = Flank::fit_both(flanks, [inner_flank_sum, outer_flank_sum]);
     let (a, b) = ((j - half).max(0), (j + half.min(rim_far)).min(last));
     let mut integral = 0.0;
     for k in a..=b {
@@ -273,36 +339,55 @@ struct Flank {
 
 impl Flank {
     /// The line through `profile[from..=to]` (indices clamped to the profile).
+    #[cfg(test)]
     fn fit(profile: &[f64], from: isize, to: isize) -> Self {
-        let last = profile.len() as isize - 1;
-        let (a, b) = (from.clamp(0, last) as usize, to.clamp(0, last) as usize);
-        let values = &profile[a..=b];
-        let n = values.len() as f64;
-        let mean_offset = (n - 1.0) / 2.0;
-        let mean_level = values.iter().sum::<f64>() / n;
+        let values = stretch(profile, from, to);
+        let [sum] = sums_together([values.1]);
+        let [flank, _] = Self::fit_both([values; 2], [sum; 2]);
+        flank
+    }
+
+    /// The lines through two stretches of a profile (each with where it starts in the profile
+    /// and the sum of its values), each with the bits of a fit of its own. Each fit is chains of
+    /// sums, one after the other; stepping both fits' chains together lets them overlap.
+    fn fit_both(values: [(usize, &[f64]); 2], sums: [f64; 2]) -> [Self; 2] {
+        let longest = values[0].1.len().max(values[1].1.len());
+        let n = values.map(|(_, v)| v.len() as f64);
+        let mean_offset = n.map(|n| (n - 1.0) / 2.0);
+        // Sample `i` of both stretches, where the stretch has one.
+        let pair = |i: usize| values.map(|(_, v)| v.get(i).copied());
+        let mean_level = [sums[0] / n[0], sums[1] / n[1]];
         // The abscissae `i - mean_offset` are multiples of a half and their squares of a
         // quarter, so stepping them by one and summing their squares in closed form, n (n^2 - 1)
         // / 12, is exact: the same bits as converting each index and summing the squares.
-        let sxx = n * (n * n - 1.0) / 12.0;
-        let mut sxy = 0.0;
-        let mut x = -mean_offset;
-        for &v in values {
-            sxy += x * (v - mean_level);
-            x += 1.0;
+        let sxx = n.map(|n| n * (n * n - 1.0) / 12.0);
+        let mut sxy = [0.0; 2];
+        let mut x = mean_offset.map(|m| -m);
+        for i in 0..longest {
+            for k in 0..2 {
+                if let Some(v) = pair(i)[k] {
+                    sxy[k] += x[k] * (v - mean_level[k]);
+                    x[k] += 1.0;
+                }
+            }
         }
-        let slope = if sxx > 0.0 { sxy / sxx } else { 0.0 };
-        let mut sum_sq = 0.0;
-        let mut x = -mean_offset;
-        for &v in values {
-            sum_sq += (v - mean_level - slope * x).powi(2);
-            x += 1.0;
+        let slope = [0, 1].map(|k| if sxx[k] > 0.0 { sxy[k] / sxx[k] } else { 0.0 });
+        let mut sum_sq = [0.0; 2];
+        let mut x = mean_offset.map(|m| -m);
+        for i in 0..longest {
+            for k in 0..2 {
+                if let Some(v) = pair(i)[k] {
+                    sum_sq[k] += (v - mean_level[k] - slope[k] * x[k]).powi(2);
+                    x[k] += 1.0;
+                }
+            }
         }
-        Self {
-            mean_index: a as f64 + mean_offset,
-            mean_level,
-            slope,
-            rms: (sum_sq / n).sqrt(),
-        }
+        [0, 1].map(|k| Self {
+            mean_index: values[k].0 as f64 + mean_offset[k],
+            mean_level: mean_level[k],
+            slope: slope[k],
+            rms: (sum_sq[k] / n[k]).sqrt(),
+        })
     }
 
     /// The line's level at sample index `k`.

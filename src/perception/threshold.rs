@@ -229,8 +229,13 @@ pub fn brighten_above(binary: &mut GrayImage, image: &GrayImage, level: u8) {
 /// `imageproc::contrast::otsu_level` (tested), whose histogram walks the image pixel by pixel
 /// through its generic accessors and was a tenth of the bore detector's time.
 pub fn otsu_level(image: &GrayImage) -> u8 {
-    let histogram = histogram(image);
-    let total_weight = image.width() * image.height();
+    let mut histogram = HistogramTables::new();
+    histogram.add(image.as_raw());
+    otsu_level_of_histogram(&histogram.total(), image.width() * image.height())
+}
+
+/// Otsu's level of a grey-level histogram of `total_weight` pixels (see [`otsu_level`]).
+pub fn otsu_level_of_histogram(histogram: &[u32; 256], total_weight: u32) -> u8 {
     // The same operations in the same order as imageproc's, so the same level.
     let total_sum = histogram
         .iter()
@@ -261,27 +266,44 @@ pub fn otsu_level(image: &GrayImage) -> u8 {
     best
 }
 
-/// Grey-level histogram, counted in eight interleaved tables so that runs of equal levels (a
+/// A grey-level histogram, counted in eight interleaved tables so that runs of equal levels (a
 /// flat belt, a rim) do not wait on each other's increments, from whole 8-byte words.
-fn histogram(image: &GrayImage) -> [u32; 256] {
-    let mut tables = [[0u32; 256]; 8];
-    let raw = image.as_raw();
-    let mut chunks = raw.chunks_exact(8);
-    for c in &mut chunks {
-        let mut word = c.first_chunk::<8>().map_or(0, |b| u64::from_le_bytes(*b));
-        for table in &mut tables {
-            table[(word & 0xff) as usize] += 1;
-            word >>= 8;
+pub(crate) struct HistogramTables {
+    tables: [[u32; 256]; 8],
+}
+
+impl HistogramTables {
+    /// An empty histogram.
+    pub(crate) fn new() -> Self {
+        Self {
+            tables: [[0; 256]; 8],
         }
     }
-    for &p in chunks.remainder() {
-        tables[0][usize::from(p)] += 1;
+
+    /// Counts the levels of `pixels`.
+    #[inline(always)]
+    pub(crate) fn add(&mut self, pixels: &[u8]) {
+        let mut chunks = pixels.chunks_exact(8);
+        for c in &mut chunks {
+            let mut word = c.first_chunk::<8>().map_or(0, |b| u64::from_le_bytes(*b));
+            for table in &mut self.tables {
+                table[(word & 0xff) as usize] += 1;
+                word >>= 8;
+            }
+        }
+        for &p in chunks.remainder() {
+            self.tables[0][usize::from(p)] += 1;
+        }
     }
-    let mut total = [0u32; 256];
-    for (i, t) in total.iter_mut().enumerate() {
-        *t = tables.iter().map(|table| table[i]).sum();
+
+    /// The count of each level.
+    pub(crate) fn total(&self) -> [u32; 256] {
+        let mut total = [0u32; 256];
+        for (i, t) in total.iter_mut().enumerate() {
+            *t = self.tables.iter().map(|table| table[i]).sum();
+        }
+        total
     }
-    total
 }
 
 /// Iterative (isodata, Ridler-Calvard) level: the midpoint of the two class means, iterated
