@@ -81,10 +81,6 @@ fn sample_points_avx2(image: &GrayImage, xs: &[f64], ys: &[f64], out: &mut [f64]
     use std::arch::x86_64::*;
     let raw = image.as_raw();
     let (w, h) = (image.width() as usize, image.height() as usize);
-    let last_start = raw.len().saturating_sub(w + 2) as i32;
-    let (low, high) = (_mm_setzero_si128(), _mm_set1_epi32(last_start));
-    let (width, byte) = (_mm_set1_epi32(w as i32), _mm_set1_epi32(0xff));
-    let bottom_offset = _mm_set1_epi32(w as i32 - 2);
     let zero = _mm256_setzero_pd();
     let (x_end, y_end) = (
         _mm256_set1_pd(w as f64 - 1.0),
@@ -113,33 +109,56 @@ fn sample_points_avx2(image: &GrayImage, xs: &[f64], ys: &[f64], out: &mut [f64]
         if _mm256_movemask_pd(inside) != 0b1111 {
             break;
         }
-        let (x0, y0) = (_mm256_cvttpd_epi32(x), _mm256_cvttpd_epi32(y));
-        let fx = _mm256_sub_pd(x, _mm256_cvtepi32_pd(x0));
-        let fy = _mm256_sub_pd(y, _mm256_cvtepi32_pd(y0));
-        let start = _mm_add_epi32(_mm_mullo_epi32(y0, width), x0);
-        let start = _mm_min_epi32(_mm_max_epi32(start, low), high);
-        // SAFETY: `start` lies in `[0, len - w - 2]`, so the four bytes read from `start` and
-        // from `start + w - 2` are inside `raw`.
-        let (top, bottom) = unsafe {
-            (
-                _mm_i32gather_epi32::<1>(raw.as_ptr().cast(), start),
-                _mm_i32gather_epi32::<1>(raw.as_ptr().cast(), _mm_add_epi32(start, bottom_offset)),
-            )
-        };
-        let level = |v: __m128i| _mm256_cvtepi32_pd(_mm_and_si128(v, byte));
-        let (p00, p01) = (level(top), level(_mm_srli_epi32::<8>(top)));
-        let (p10, p11) = (
-            level(_mm_srli_epi32::<16>(bottom)),
-            level(_mm_srli_epi32::<24>(bottom)),
-        );
-        let top = _mm256_add_pd(p00, _mm256_mul_pd(fx, _mm256_sub_pd(p01, p00)));
-        let bottom = _mm256_add_pd(p10, _mm256_mul_pd(fx, _mm256_sub_pd(p11, p10)));
-        let value = _mm256_add_pd(top, _mm256_mul_pd(fy, _mm256_sub_pd(bottom, top)));
+        let value = bilinear4_avx2(raw, w, x, y);
         // SAFETY: `o` holds exactly four `f64`.
         unsafe { _mm256_storeu_pd(o.as_mut_ptr(), value) };
         done += 4;
     }
     done
+}
+
+/// Four bilinear samples of the `w`-pixel-wide image `raw` at `x`, `y` (each inside, with its
+/// four neighbours), with the same IEEE operations in the same order as [`sample_bilinear`] on
+/// each lane: the same bits. Each gather reads four bytes: the top pair from its first two, the
+/// bottom pair from the last two of a read starting two bytes early (so it never passes the
+/// image's end); clamping the start indices keeps every read inside the image whatever the
+/// positions. The image must be at least 2x2 and under 2^31 bytes.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn bilinear4_avx2(
+    raw: &[u8],
+    w: usize,
+    x: std::arch::x86_64::__m256d,
+    y: std::arch::x86_64::__m256d,
+) -> std::arch::x86_64::__m256d {
+    use std::arch::x86_64::*;
+    let last_start = raw.len().saturating_sub(w + 2) as i32;
+    let (low, high) = (_mm_setzero_si128(), _mm_set1_epi32(last_start));
+    let (width, byte) = (_mm_set1_epi32(w as i32), _mm_set1_epi32(0xff));
+    let bottom_offset = _mm_set1_epi32(w as i32 - 2);
+    let (x0, y0) = (_mm256_cvttpd_epi32(x), _mm256_cvttpd_epi32(y));
+    let fx = _mm256_sub_pd(x, _mm256_cvtepi32_pd(x0));
+    let fy = _mm256_sub_pd(y, _mm256_cvtepi32_pd(y0));
+    let start = _mm_add_epi32(_mm_mullo_epi32(y0, width), x0);
+    let start = _mm_min_epi32(_mm_max_epi32(start, low), high);
+    // SAFETY: `start` lies in `[0, len - w - 2]`, so the four bytes read from `start` and from
+    // `start + w - 2` are inside `raw`.
+    let (top, bottom) = unsafe {
+        (
+            _mm_i32gather_epi32::<1>(raw.as_ptr().cast(), start),
+            _mm_i32gather_epi32::<1>(raw.as_ptr().cast(), _mm_add_epi32(start, bottom_offset)),
+        )
+    };
+    let level = |v: __m128i| _mm256_cvtepi32_pd(_mm_and_si128(v, byte));
+    let (p00, p01) = (level(top), level(_mm_srli_epi32::<8>(top)));
+    let (p10, p11) = (
+        level(_mm_srli_epi32::<16>(bottom)),
+        level(_mm_srli_epi32::<24>(bottom)),
+    );
+    let top = _mm256_add_pd(p00, _mm256_mul_pd(fx, _mm256_sub_pd(p01, p00)));
+    let bottom = _mm256_add_pd(p10, _mm256_mul_pd(fx, _mm256_sub_pd(p11, p10)));
+    _mm256_add_pd(top, _mm256_mul_pd(fy, _mm256_sub_pd(bottom, top)))
 }
 
 /// Where the samples of one ray lie: sample `i` is at `centre + (from + step i) dir`.
@@ -241,13 +260,6 @@ impl RaySamples<'_> {
         use std::arch::x86_64::*;
         let raw = self.image.as_raw();
         let w = self.image.width() as usize;
-        // Each gather reads four bytes: the top pair from its first two, the bottom pair from
-        // the last two of a read starting two bytes early (so it never passes the image's end).
-        // Clamping the start indices keeps every read inside the image whatever the positions.
-        let last_start = raw.len().saturating_sub(w + 2) as i32;
-        let (low, high) = (_mm_setzero_si128(), _mm_set1_epi32(last_start));
-        let (width, byte) = (_mm_set1_epi32(w as i32), _mm_set1_epi32(0xff));
-        let bottom_offset = _mm_set1_epi32(w as i32 - 2);
         let (from, step) = (_mm256_set1_pd(self.from), _mm256_set1_pd(self.step));
         let (cx, cy) = (
             _mm256_set1_pd(self.centre[0]),
@@ -262,31 +274,7 @@ impl RaySamples<'_> {
             let t = _mm256_add_pd(from, _mm256_mul_pd(step, index));
             let x = _mm256_add_pd(cx, _mm256_mul_pd(t, dx));
             let y = _mm256_add_pd(cy, _mm256_mul_pd(t, dy));
-            let (x0, y0) = (_mm256_cvttpd_epi32(x), _mm256_cvttpd_epi32(y));
-            let fx = _mm256_sub_pd(x, _mm256_cvtepi32_pd(x0));
-            let fy = _mm256_sub_pd(y, _mm256_cvtepi32_pd(y0));
-            let start = _mm_add_epi32(_mm_mullo_epi32(y0, width), x0);
-            let start = _mm_min_epi32(_mm_max_epi32(start, low), high);
-            // SAFETY: `start` lies in `[0, len - w - 2]`, so the four bytes read from `start`
-            // and from `start + w - 2` are inside `raw` (`w >= 2` for a sample to be inside).
-            let (top, bottom) = unsafe {
-                (
-                    _mm_i32gather_epi32::<1>(raw.as_ptr().cast(), start),
-                    _mm_i32gather_epi32::<1>(
-                        raw.as_ptr().cast(),
-                        _mm_add_epi32(start, bottom_offset),
-                    ),
-                )
-            };
-            let level = |v: __m128i| _mm256_cvtepi32_pd(_mm_and_si128(v, byte));
-            let (p00, p01) = (level(top), level(_mm_srli_epi32::<8>(top)));
-            let (p10, p11) = (
-                level(_mm_srli_epi32::<16>(bottom)),
-                level(_mm_srli_epi32::<24>(bottom)),
-            );
-            let top = _mm256_add_pd(p00, _mm256_mul_pd(fx, _mm256_sub_pd(p01, p00)));
-            let bottom = _mm256_add_pd(p10, _mm256_mul_pd(fx, _mm256_sub_pd(p11, p10)));
-            let value = _mm256_add_pd(top, _mm256_mul_pd(fy, _mm256_sub_pd(bottom, top)));
+            let value = bilinear4_avx2(raw, w, x, y);
             // SAFETY: `chunk` holds exactly four `f64`.
             unsafe { _mm256_storeu_pd(chunk.as_mut_ptr(), value) };
             i += 4;
