@@ -20,7 +20,7 @@ use criterion::measurement::Measurement;
 use criterion::{BenchmarkGroup, Criterion, SamplingMode, criterion_group, criterion_main};
 use rapier3d::prelude::*;
 use twincell::batch::{Perception, TrialRunner, trial_seed};
-use twincell::cell::Cell;
+use twincell::cell::{Cell, CellModel};
 use twincell::rng::SimRng;
 use twincell::scenario::Scenario;
 use twincell::task::CellTrialRunner;
@@ -41,7 +41,10 @@ fn scenario() -> Scenario {
 /// in all), the belt running.
 fn loaded_cell(scenario: &Scenario) -> Cell {
     let mut rng = SimRng::new(1);
-    let Ok(mut cell) = Cell::build(scenario, None, &mut rng) else {
+    let Ok(mut cell) = Cell::build(
+        &CellModel::with_urdf(scenario.clone(), None).expect("model"),
+        &mut rng,
+    ) else {
         panic!("cell builds")
     };
     let physics = &mut cell.world.physics;

@@ -7,7 +7,7 @@ use nalgebra::{Isometry3, Translation3, UnitQuaternion};
 use serde::Serialize;
 
 use crate::control::TrajectoryFollower;
-use crate::kinematics::{AnalyticIk, ArmModel, DOF, IkSolver, JointVector, gripper_tcp, tcp_pose};
+use crate::kinematics::{AnalyticIk, DOF, IkSolver, JointVector, tcp_pose};
 use crate::planning::JointTrajectory;
 use crate::rng::SimRng;
 use crate::sim::{SimArm, SimError, World, WorldParams};
@@ -92,13 +92,13 @@ fn random_target(rng: &mut SimRng) -> Isometry3<f64> {
 
 /// Runs the demo with the arm loaded from `urdf` (the built-in description when `None`).
 pub fn run(urdf: Option<&Path>, params: &DemoParams) -> Result<DemoReport, SimError> {
-    let model = ArmModel::aubo_i5().with_tool(gripper_tcp());
-    let ik = AnalyticIk::new(model.clone())?;
     let mut world = World::new(WorldParams::default());
     let arm = match urdf {
         Some(path) => SimArm::load(&mut world, path, Isometry3::identity())?,
         None => SimArm::load_builtin(&mut world, Isometry3::identity())?,
     };
+    let model = arm.kinematics().model.clone();
+    let ik = AnalyticIk::new(model.clone())?;
     let home: JointVector = [0.0, -0.26, 1.74, 0.43, 1.57, 0.0];
     arm.reset_to(&mut world, &home, 0.03);
     let mut rng = SimRng::new(params.seed);

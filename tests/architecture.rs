@@ -2,29 +2,87 @@
 //! it: this test reads every `crate::` path in `src/` and fails on one that points later in the
 //! order (which is also what rules out import cycles). It also keeps source files short.
 
-use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-/// The allowed order: a module may use itself and any module listed before it. Keep in step
-/// with ARCHITECTURE.md and `src/lib.rs`.
-const ORDER: [&str; 17] = [
-    "math",
-    "rng",
-    "kinematics",
-    "scenario",
-    "outcome",
-    "sim",
-    "cell",
-    "camera",
-    "render",
-    "detect",
-    "perception",
-    "planning",
-    "control",
-    "task",
-    "batch",
-    "record",
-    "demo",
+/// The allowed order, and what each module may import: only modules listed before it (which
+/// rules out import cycles), and of those only the ones named. Keep in step with
+/// ARCHITECTURE.md and `src/lib.rs`.
+const MODULES: [(&str, &[&str]); 17] = [
+    ("math", &[]),
+    ("rng", &[]),
+    ("kinematics", &["math"]),
+    ("scenario", &["math", "kinematics"]),
+    ("outcome", &[]),
+    ("sim", &["math", "rng", "kinematics", "scenario", "outcome"]),
+    (
+        "cell",
+        &["math", "rng", "kinematics", "scenario", "outcome", "sim"],
+    ),
+    ("camera", &["math"]),
+    (
+        "render",
+        &["math", "rng", "scenario", "sim", "cell", "camera"],
+    ),
+    ("detect", &["math"]),
+    // Perception works on images and the camera's calibration alone, never on the world.
+    ("perception", &["math", "rng", "camera"]),
+    (
+        "planning",
+        &[
+            "math",
+            "rng",
+            "kinematics",
+            "scenario",
+            "outcome",
+            "sim",
+            "cell",
+        ],
+    ),
+    (
+        "control",
+        &["math", "kinematics", "outcome", "sim", "planning"],
+    ),
+    (
+        "task",
+        &[
+            "math",
+            "rng",
+            "kinematics",
+            "scenario",
+            "outcome",
+            "sim",
+            "cell",
+            "camera",
+            "render",
+            "detect",
+            "perception",
+            "planning",
+            "control",
+        ],
+    ),
+    ("batch", &["math", "rng", "scenario", "outcome", "task"]),
+    (
+        "record",
+        &["math", "scenario", "outcome", "sim", "render", "task"],
+    ),
+    (
+        "demo",
+        &["math", "rng", "kinematics", "sim", "planning", "control"],
+    ),
+];
+
+/// Text a module must not contain, and why: the task watches contacts through `sim`'s queries.
+const FORBIDDEN: [(&str, &str, &str); 2] = [
+    (
+        "task",
+        "narrow_phase",
+        "walks the engine's narrow phase; ask `sim::World` instead",
+    ),
+    (
+        "task",
+        "NarrowPhase",
+        "names the engine's narrow phase; ask `sim::World` instead",
+    ),
 ];
 
 /// Longest source file, lines.
@@ -109,9 +167,48 @@ fn crate_paths(text: &str) -> Vec<(usize, String)> {
     found
 }
 
+/// What is wrong with `text`, the source of `file` in `module`: imports the module may not make
+/// and text it must not contain.
+fn violations_in(module: &str, file: &str, text: &str) -> Vec<String> {
+    let Some(own) = MODULES.iter().position(|(m, _)| *m == module) else {
+        return vec![format!(
+            "{file}: module `{module}` is not in the allowed order"
+        )];
+    };
+    let allowed = MODULES[own].1;
+    let mut violations = Vec::new();
+    for (line, used) in crate_paths(text) {
+        if used == module {
+            continue;
+        }
+        match MODULES.iter().position(|(m, _)| *m == used) {
+            None => violations.push(format!(
+                "{file}:{line}: `crate::{used}` is not a module in the allowed order"
+            )),
+            Some(other) if other > own => violations.push(format!(
+                "{file}:{line}: `{module}` imports `{used}`, which comes after it"
+            )),
+            Some(_) if !allowed.contains(&used.as_str()) => violations.push(format!(
+                "{file}:{line}: `{module}` imports `{used}`, which is not on its list"
+            )),
+            Some(_) => {}
+        }
+    }
+    let code: String = text
+        .lines()
+        .map(|line| line.split("//").next().unwrap_or(""))
+        .collect::<Vec<_>>()
+        .join("\n");
+    for (m, needle, why) in FORBIDDEN {
+        if m == module && code.contains(needle) {
+            violations.push(format!("{file}: `{module}` {why}"));
+        }
+    }
+    violations
+}
+
 #[test]
-fn every_module_imports_only_modules_before_it() {
-    let rank: BTreeMap<&str, usize> = ORDER.iter().enumerate().map(|(i, m)| (*m, i)).collect();
+fn every_module_imports_only_what_its_list_allows() {
     let mut files = Vec::new();
     rust_files(&src(), &mut files);
     let mut violations = Vec::new();
@@ -119,33 +216,51 @@ fn every_module_imports_only_modules_before_it() {
         let Some(module) = module_of(file) else {
             continue;
         };
-        let Some(&own) = rank.get(module.as_str()) else {
-            violations.push(format!(
-                "{}: module `{module}` is not in the allowed order",
-                file.display()
-            ));
-            continue;
-        };
         let Ok(text) = std::fs::read_to_string(file) else {
             panic!("cannot read {}", file.display());
         };
-        for (line, used) in crate_paths(&text) {
-            let Some(&other) = rank.get(used.as_str()) else {
-                violations.push(format!(
-                    "{}:{line}: `crate::{used}` is not a module in the allowed order",
-                    file.display()
-                ));
-                continue;
-            };
-            if other > own {
-                violations.push(format!(
-                    "{}:{line}: `{module}` imports `{used}`, which comes after it",
-                    file.display()
-                ));
-            }
-        }
+        violations.extend(violations_in(&module, &file.display().to_string(), &text));
     }
     assert!(violations.is_empty(), "{}", violations.join("\n"));
+}
+
+#[test]
+fn each_list_names_only_modules_before_its_own() {
+    for (own, (module, allowed)) in MODULES.iter().enumerate() {
+        for used in *allowed {
+            let other = MODULES.iter().position(|(m, _)| m == used);
+            assert!(
+                other.is_some_and(|o| o < own),
+                "`{module}` lists `{used}`, which is not before it"
+            );
+        }
+    }
+}
+
+#[test]
+fn deliberate_violations_are_caught() {
+    let perception_reads_the_world = "use crate::sim::World;\nuse crate::camera::Calibration;\n";
+    let found = violations_in("perception", "perception/x.rs", perception_reads_the_world);
+    assert_eq!(found.len(), 1, "{found:?}");
+    assert!(found[0].contains("`perception` imports `sim`"), "{found:?}");
+    for world in ["sim", "cell", "render"] {
+        let text = format!("use crate::{{math, {world}::X}};");
+        let found = violations_in("perception", "perception/x.rs", &text);
+        assert_eq!(found.len(), 1, "{found:?}");
+        assert!(
+            found[0].contains(&format!("imports `{world}`")),
+            "{found:?}"
+        );
+    }
+    let backwards = violations_in("sim", "sim/x.rs", "use crate::task::Trial;");
+    assert!(
+        backwards[0].contains("which comes after it"),
+        "{backwards:?}"
+    );
+    let walk = "let pairs = world.physics.narrow_phase.contact_pairs_with(c);";
+    let found = violations_in("task", "task/x.rs", walk);
+    assert!(found[0].contains("narrow phase"), "{found:?}");
+    assert!(violations_in("task", "task/x.rs", "// narrow_phase in a comment").is_empty());
 }
 
 #[test]
@@ -159,7 +274,8 @@ fn lib_declares_the_modules_in_the_allowed_order() {
         .map(|l| l.trim_end_matches(';'))
         .collect();
     assert_eq!(
-        declared, ORDER,
+        declared,
+        MODULES.map(|(m, _)| m),
         "src/lib.rs declares its modules out of order"
     );
 }

@@ -3,7 +3,7 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use twincell::cell::Cell;
+use twincell::cell::{Cell, CellModel};
 use twincell::rng::SimRng;
 use twincell::scenario::Scenario;
 
@@ -70,7 +70,11 @@ fn bad_scenarios_name_the_file_key_and_reason() {
 fn belt_carries_the_part_to_the_photo_eye_by_friction() {
     let scenario = paper();
     let mut rng = SimRng::new(3);
-    let mut cell = Cell::build(&scenario, None, &mut rng).expect("cell builds");
+    let mut cell = Cell::build(
+        &CellModel::with_urdf(scenario.clone(), None).expect("model"),
+        &mut rng,
+    )
+    .expect("cell builds");
     let start = cell
         .body_pose(cell.items.parts()[0].body)
         .expect("part")
@@ -134,7 +138,11 @@ fn every_part_type_stands_still_and_upright_on_the_stopped_belt() {
         let mut scenario = base.clone();
         scenario.part_types = vec![part_type.clone()];
         scenario.bottle.enabled = false;
-        let mut cell = Cell::build(&scenario, None, &mut SimRng::new(5)).expect("cell builds");
+        let mut cell = Cell::build(
+            &CellModel::with_urdf(scenario.clone(), None).expect("model"),
+            &mut SimRng::new(5),
+        )
+        .expect("cell builds");
         let steps = |s: f64| (s / scenario.physics.dt_s).round() as usize;
         for _ in 0..steps(0.5) {
             cell.step();
@@ -215,7 +223,7 @@ fn run_is_deterministic_across_jobs() {
 fn bad_scenario_exits_with_code_2() {
     let dir = std::env::temp_dir().join(format!("twincell-cell-bad-{}", std::process::id()));
     std::fs::create_dir_all(&dir).expect("temp dir");
-    let text = std::fs::read_to_string(scenario_path("smoke.toml")).expect("read");
+    let text = std::fs::read_to_string(scenario_path("paper_50.toml")).expect("read");
     let bad = dir.join("bad.toml");
     std::fs::write(
         &bad,
@@ -266,7 +274,10 @@ fn grasp_holds_by_friction_and_a_weak_grip_lets_the_part_slip() {
 fn short_stream(dir: &Path, parts: u32, bottles: u32) -> PathBuf {
     std::fs::create_dir_all(dir).expect("temp dir");
     let text = std::fs::read_to_string(scenario_path("stream.toml")).expect("read");
+    // The copy extends the shipped paper_50.toml wherever it is written.
+    let base = format!("extends = {:?}", scenario_path("paper_50.toml"));
     let text = text
+        .replace("extends = \"paper_50.toml\"", &base)
         .replace("parts_per_trial = 8", &format!("parts_per_trial = {parts}"))
         .replace("bottles = 2", &format!("bottles = {bottles}"));
     let path = dir.join("short_stream.toml");
@@ -330,7 +341,7 @@ fn a_stream_is_deterministic_across_jobs_and_shards() {
 #[test]
 fn a_bad_stream_section_names_the_key() {
     let stream = std::fs::read_to_string(scenario_path("stream.toml")).expect("read");
-    let path = Path::new("stream.toml");
+    let path = &scenario_path("stream.toml");
     let tight = Scenario::from_toml(&stream.replace("spacing_m = 0.3", "spacing_m = 0.05"), path)
         .expect_err("too tight");
     assert!(tight.to_string().contains("stream.spacing_m"), "{tight}");

@@ -80,7 +80,7 @@ fn every_trial_keeps_the_joints_within_their_limits_and_the_part_in_the_jaws() {
             m.grip_drift_mm
         );
         // The phases account for every simulated second of the trial.
-        let booked: f64 = m.phase_s.named().iter().map(|(_, s)| s).sum();
+        let booked: f64 = m.phase_s.iter().map(|(_, s)| s).sum();
         assert!(
             (booked - record.sim_time_s).abs() < 1e-6,
             "trial {}: phases {booked} s of {} s",

@@ -13,7 +13,7 @@ use std::process::Command;
 
 use common::twincell;
 use twincell::batch::{FailureReason, TrialRecord};
-use twincell::cell::Cell;
+use twincell::cell::{Cell, CellModel};
 use twincell::perception::BoreDetector;
 use twincell::perception::calibration::MeasureOnPlane;
 use twincell::record::RerunRecorder;
@@ -252,10 +252,14 @@ fn perception_panel_is_recorded() {
     let recorder = RerunRecorder::save(&path, "perception-test").expect("recorder");
     let mut observer = recorder.observer(3);
     let mut rng = SimRng::new(11);
-    let cell = Cell::build(&scenario, None, &mut rng).expect("cell");
+    let cell = Cell::build(
+        &CellModel::with_urdf(scenario.clone(), None).expect("model"),
+        &mut rng,
+    )
+    .expect("cell");
     let view = CellView {
         cell: &cell,
-        phase: "perceive",
+        phase: twincell::outcome::Phase::Perceive,
         joint_command_rad: scenario.robot.home_q_rad,
         grip_force_limit_n: scenario.gripper.grip_force_n,
     };

@@ -7,6 +7,8 @@ use std::process::{Command, Stdio};
 use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
+mod common;
+
 use serde_json::Value;
 use twincell::batch::{
     BatchError, BatchOptions, BatchPlan, Outcome, PartRecord, Perception, ResumeError, Shard,
@@ -306,7 +308,11 @@ fn resume_refuses_another_batch_with_exit_2_naming_the_field() {
 
     let edited = out_dir("cli-mismatch-scenario").join("smoke.toml");
     fs::create_dir_all(edited.parent().expect("parent")).expect("dir");
-    fs::write(&edited, read(Path::new(scenario)) + "\n# edited\n").expect("write");
+    fs::write(
+        &edited,
+        common::portable_text("smoke.toml") + "\n# edited\n",
+    )
+    .expect("write");
     let edited = path_str(&edited);
     let cases: [(&str, Vec<&str>); 6] = [
         ("seed", vec![scenario, "--seed", "8", "--trials", "2"]),

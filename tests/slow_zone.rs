@@ -3,7 +3,7 @@
 //! ramped the belt to a stop. Drawn over belt speeds from the paper's to four times it, creep
 //! speeds and every part type, without a bottle.
 
-use twincell::cell::Cell;
+use twincell::cell::{Cell, CellModel};
 use twincell::control::BeltDrive;
 use twincell::rng::SimRng;
 use twincell::scenario::Scenario;
@@ -21,7 +21,11 @@ fn part_at_the_eye_after_the_stop(speed_m_s: f64, creep_m_s: f64, seed: u64) -> 
     scenario.conveyor.speed_m_s = speed_m_s;
     scenario.conveyor.creep_speed_m_s = creep_m_s;
     let mut rng = SimRng::new(seed);
-    let mut cell = Cell::build(&scenario, None, &mut rng).expect("cell builds");
+    let mut cell = Cell::build(
+        &CellModel::with_urdf(scenario.clone(), None).expect("model"),
+        &mut rng,
+    )
+    .expect("cell builds");
     let dt = scenario.physics.dt_s;
     let mut drive = BeltDrive::with_creep(creep_m_s);
     drive.run_at(speed_m_s);

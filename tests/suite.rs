@@ -184,11 +184,10 @@ fn a_bad_override_is_bad_input_before_any_trial() {
 fn a_suite_runs_every_scenario_file_with_its_gate_per_scenario() {
     let suite = out_dir("suite-files");
     std::fs::create_dir_all(&suite).expect("suite dir");
-    let smoke = read(Path::new(SMOKE));
+    let smoke = common::portable_text("smoke.toml");
     std::fs::write(suite.join("a_smoke.toml"), &smoke).expect("write");
-    let hopeless = smoke
-        .replace("name = \"smoke\"", "name = \"hopeless\"")
-        .replace("[bottle]", "[task]\nwait_timeout_s = 0.01\n\n[bottle]");
+    let hopeless = smoke.replace("name = \"smoke\"", "name = \"hopeless\"")
+        + "\n[task]\nwait_timeout_s = 0.01\n";
     std::fs::write(suite.join("b_hopeless.toml"), hopeless).expect("write");
     std::fs::write(suite.join("notes.txt"), "not a scenario").expect("write");
     let out = out_dir("suite-out");

@@ -91,13 +91,23 @@ pub struct HtmlPage {
     pub cards: Vec<TrialCard>,
 }
 
-/// Simulated cycle times of the successful trials in `dir/trials.jsonl`, s.
+/// Simulated cycle times of the sorted parts in `dir/trials.jsonl` (each part's own, as in
+/// `report.json`'s `cycle_time_s`), s.
 pub fn successful_cycle_times(dir: &Path) -> Result<Vec<f64>, HtmlError> {
     Ok(read_records(dir)?
         .iter()
-        .filter(|r| r.outcome == Outcome::Success)
-        .map(|r| r.cycle_time_s)
+        .flat_map(sorted_cycle_times)
         .collect())
+}
+
+/// The pick cycles of `record`'s sorted parts, s.
+fn sorted_cycle_times(record: &crate::outcome::TrialRecord) -> Vec<f64> {
+    record
+        .parts()
+        .iter()
+        .filter(|p| p.outcome == Outcome::Success)
+        .map(|p| p.cycle_time_s)
+        .collect()
 }
 
 impl HtmlPage {
@@ -125,9 +135,7 @@ impl HtmlPage {
         for (label, row) in &rows {
             let dir = root.join(&row.dir);
             for record in read_records(&dir)? {
-                if record.outcome == Outcome::Success {
-                    cycle_times_s.push(record.cycle_time_s);
-                }
+                cycle_times_s.extend(sorted_cycle_times(&record));
                 sorting.add(&record);
                 cards.extend(trial_card(label, &dir, perception, &record)?);
             }

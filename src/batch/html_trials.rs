@@ -90,8 +90,10 @@ impl PageSorting {
     /// Adds what `record` says: every decided part, a single part not detected, a stream's
     /// bottles let through and its item taken for something else.
     pub fn add(&mut self, record: &TrialRecord) {
-        if let (Some(part), Some(decision)) = (&record.part, &record.decision) {
-            self.add_decided(part, decision);
+        for p in record.parts() {
+            if let Some(decision) = p.decision {
+                self.add_decided(p.part, decision);
+            }
         }
         if let (Some(part), None, Some(FailureReason::NotDetected)) =
             (&record.part, &record.decision, record.failure)
@@ -99,11 +101,6 @@ impl PageSorting {
             self.add_type(&part.part_type, NOT_DETECTED, 1);
         }
         if let Some(stream) = &record.stream {
-            for p in &stream.parts {
-                if let Some(decision) = &p.decision {
-                    self.add_decided(&p.part, decision);
-                }
-            }
             self.add_type(BOTTLE, BOTTLE, stream.bottles_passed);
             if let Some(m) = &stream.misidentified {
                 self.add_type(&m.truth, &m.identified, 1);
@@ -295,28 +292,22 @@ pub fn trial_card(
         (Outcome::Failure, None) => "unspecified".to_owned(),
         (Outcome::Success, _) => "misjudged".to_owned(),
     };
-    let part = match &record.stream {
-        Some(stream) => stream
-            .parts
-            .iter()
-            .find(|p| {
-                p.outcome == Outcome::Failure
-                    || p.decision
-                        .as_ref()
-                        .is_some_and(|d| decision_misjudged(&p.part, d))
-            })
-            .map(|p| {
-                format!(
-                    "part {}: {}",
-                    p.index,
-                    judgement(&p.part, p.decision.as_ref(), p.placed_bin.as_deref())
-                )
-            }),
-        None => record
-            .part
-            .as_ref()
-            .map(|p| judgement(p, record.decision.as_ref(), record.placed_bin.as_deref())),
+    // A stream names its first failed or misjudged part; a single-part trial its one part.
+    let parts = record.parts();
+    let shown = match &record.stream {
+        Some(_) => parts.iter().find(|p| {
+            p.outcome == Outcome::Failure
+                || p.decision.is_some_and(|d| decision_misjudged(p.part, d))
+        }),
+        None => parts.first(),
     };
+    let part = shown.map(|p| {
+        let judged = judgement(p.part, p.decision, p.placed_bin);
+        match &record.stream {
+            Some(_) => format!("part {}: {judged}", p.index),
+            None => judged,
+        }
+    });
     let image = match perception {
         Perception::Oracle => CardImage::Oracle,
         Perception::Camera => {

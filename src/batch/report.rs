@@ -300,14 +300,8 @@ fn strictly_right(record: &TrialRecord) -> bool {
     if record.outcome != Outcome::Success {
         return false;
     }
-    match (&record.stream, &record.part) {
-        (Some(stream), _) => stream
-            .parts
-            .iter()
-            .all(|p| p.placed_bin.as_deref() == Some(p.part.correct_bin.as_str())),
-        (None, Some(part)) => record.placed_bin.as_deref() == Some(part.correct_bin.as_str()),
-        (None, None) => false,
-    }
+    let parts = record.parts();
+    !parts.is_empty() && parts.iter().all(|p| p.in_correct_bin())
 }
 
 pub(crate) fn count(n: usize) -> u32 {
@@ -373,16 +367,12 @@ impl BatchReport {
         let mut roundness_errors = Vec::new();
         let mut bore_errors = Vec::new();
         let mut sorting = Sorting::default();
-        // Every part with a decision: a single-part trial's, and each part of a stream.
-        let decided = records.iter().flat_map(|record| {
-            let single = record.part.as_ref().zip(record.decision.as_ref());
-            let streamed = record
-                .stream
-                .iter()
-                .flat_map(|s| &s.parts)
-                .filter_map(|p| p.decision.as_ref().map(|d| (&p.part, d)));
-            single.into_iter().chain(streamed)
-        });
+        // Every part with a decision, of single-part trials and streams alike.
+        let decided: Vec<_> = records
+            .iter()
+            .flat_map(|record| record.parts())
+            .filter_map(|p| p.decision.map(|d| (p.part, d)))
+            .collect();
         for (part, decision) in decided {
             sorting.count += 1;
             if let Some(measured) = decision.measured_roundness_mm {
@@ -421,22 +411,12 @@ impl BatchReport {
                 .or_insert(0) += 1;
         }
 
-        // Cycle time per sorted part: a successful single-part trial's, each sorted part's of
-        // a stream.
+        // Cycle time per sorted part.
         let mut cycle_times: Vec<f64> = records
             .iter()
-            .flat_map(|r| match &r.stream {
-                None => (r.outcome == Outcome::Success)
-                    .then_some(r.cycle_time_s)
-                    .into_iter()
-                    .collect::<Vec<_>>(),
-                Some(s) => s
-                    .parts
-                    .iter()
-                    .filter(|p| p.outcome == Outcome::Success)
-                    .map(|p| p.cycle_time_s)
-                    .collect(),
-            })
+            .flat_map(|r| r.parts())
+            .filter(|p| p.outcome == Outcome::Success)
+            .map(|p| p.cycle_time_s)
             .collect();
         cycle_times.sort_by(f64::total_cmp);
         let cycle_time_s = match (
@@ -454,9 +434,13 @@ impl BatchReport {
         let total_cycle_min = records.iter().map(|r| r.cycle_time_s).sum::<f64>() / 60.0;
         let sorted_parts: u32 = records
             .iter()
-            .map(|r| match &r.stream {
-                None => u32::from(r.outcome == Outcome::Success),
-                Some(s) => s.parts_sorted,
+            .map(|r| {
+                count(
+                    r.parts()
+                        .iter()
+                        .filter(|p| p.outcome == Outcome::Success)
+                        .count(),
+                )
             })
             .sum();
         let parts_per_minute =

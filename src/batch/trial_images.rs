@@ -47,22 +47,9 @@ pub fn decision_misjudged(part: &PartRecord, decision: &DecisionRecord) -> bool 
 /// The first part of `record` that failed or was misjudged, as an index into its stream's
 /// parts (`Some(0)` for a single-part trial's part); `None` when there is none.
 fn first_bad_part(record: &TrialRecord) -> Option<usize> {
-    match &record.stream {
-        Some(stream) => stream.parts.iter().position(|p| {
-            p.outcome == Outcome::Failure
-                || p.decision
-                    .as_ref()
-                    .is_some_and(|d| decision_misjudged(&p.part, d))
-        }),
-        None => {
-            let misjudged = record
-                .part
-                .as_ref()
-                .zip(record.decision.as_ref())
-                .is_some_and(|(p, d)| decision_misjudged(p, d));
-            misjudged.then_some(0)
-        }
-    }
+    record.parts().iter().position(|p| {
+        p.outcome == Outcome::Failure || p.decision.is_some_and(|d| decision_misjudged(p.part, d))
+    })
 }
 
 /// Whether the report shows `record` with its camera frame: it failed, or a decision in it

@@ -1,13 +1,11 @@
 //! Building the cell's physics world from a scenario, through `sim`: the scenery, the belt and
 //! its photo-eye, the bins, the arm at home, and the trial's part and its bottles.
 
-use std::path::PathBuf;
-
 use nalgebra::{Isometry3, Vector3};
 use rapier3d::prelude::*;
 
+use super::cell_model::CellModel;
 use super::placement::{PartSpot, PlacementError, place_bottles};
-use crate::kinematics::{ArmModel, gripper_tcp};
 use crate::math::pose_to_physics;
 use crate::rng::SimRng;
 use crate::scenario::Scenario;
@@ -155,18 +153,13 @@ impl Cell {
 
     /// Builds the cell for one trial: the scenario's fixed layout plus a part and a bottle drawn
     /// from `rng`, the arm at home.
-    pub fn build(
-        scenario: &Scenario,
-        urdf: Option<&(PathBuf, String)>,
-        rng: &mut SimRng,
-    ) -> Result<Self, CellError> {
+    pub fn build(model: &CellModel, rng: &mut SimRng) -> Result<Self, CellError> {
+        let scenario = model.scenario();
         let mut world = World::new(WorldParams::from_section(&scenario.physics));
         let base = scenario.robot.base_xyz_m;
         let world_from_base = Isometry3::translation(base[0], base[1], base[2]);
-        let arm = match urdf {
-            Some((path, text)) => SimArm::from_urdf_str(&mut world, text, path, world_from_base)?,
-            None => SimArm::load_builtin(&mut world, world_from_base)?,
-        };
+        let urdf = model.urdf();
+        let arm = SimArm::from_urdf_str(&mut world, &urdf.text, &urdf.path, world_from_base)?;
         let mut builder = Builder {
             world: &mut world,
             scenery: Vec::new(),
@@ -348,11 +341,6 @@ impl Cell {
             finger_reference_m,
             belt_top_z,
         })
-    }
-
-    /// The arm's kinematic model with the gripper's TCP.
-    pub fn arm_model() -> ArmModel {
-        ArmModel::aubo_i5().with_tool(gripper_tcp())
     }
 
     /// Pose of a body in the world.

@@ -179,17 +179,19 @@ pub fn run(args: &BenchArgs) -> Result<ExitCode> {
 /// Mean simulated seconds per phase and the extremes of the measured motion over `records`.
 fn motion_summary(records: &[TrialRecord]) -> (Vec<PhaseCost>, MotionSummary) {
     let count = records.len().max(1) as f64;
-    let mut phases: Vec<PhaseCost> = twincell::outcome::PhaseSeconds::default()
-        .named()
+    let mut phases: Vec<PhaseCost> = twincell::outcome::Phase::ALL
         .into_iter()
-        .map(|(phase, _)| PhaseCost { phase, mean_s: 0.0 })
+        .map(|phase| PhaseCost {
+            phase: phase.as_str(),
+            mean_s: 0.0,
+        })
         .collect();
     let mut motion = MotionSummary {
         min_joint_limit_margin_rad: if records.is_empty() { 0.0 } else { f64::MAX },
         ..MotionSummary::default()
     };
     for record in records {
-        for (cost, (_, s)) in phases.iter_mut().zip(record.motion.phase_s.named()) {
+        for (cost, (_, s)) in phases.iter_mut().zip(record.motion.phase_s.iter()) {
             cost.mean_s += s / count;
         }
         let m = &record.motion;

@@ -90,10 +90,18 @@ impl RunArgs {
     }
 }
 
-/// SHA-256 (hex) of the scenario file at `path` followed by the `--set` overrides.
+/// SHA-256 (hex) of the scenario file at `path`, the bases it extends and the `--set`
+/// overrides.
 fn scenario_sha256(path: &Path, overrides: &[Override]) -> Result<String> {
-    let mut bytes = std::fs::read(path)
-        .map_err(|e| BadInput(format!("cannot read: {e}: {}", path.display())))?;
+    let sources = Scenario::source_files(path).map_err(|e| BadInput(e.to_string()))?;
+    let mut bytes = Vec::new();
+    for (i, (_, text)) in sources.iter().enumerate() {
+        // A file without bases hashes as its bytes alone, as before `extends` existed.
+        if i > 0 {
+            bytes.extend_from_slice(b"\n--base\n");
+        }
+        bytes.extend_from_slice(text.as_bytes());
+    }
     // A batch run with `--set` overrides is a different scenario from the file alone.
     for o in overrides {
         bytes.extend_from_slice(format!("\n--set {o}").as_bytes());

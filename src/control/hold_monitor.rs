@@ -2,7 +2,7 @@
 
 use nalgebra::Isometry3;
 
-use crate::outcome::{Failure, FailureReason, fail};
+use crate::outcome::{Failure, FailureReason, Phase, fail};
 
 /// A drift beyond this, or a part this far from the TCP, is a drop rather than a slip, m.
 const DROP_DRIFT_M: f64 = 0.05;
@@ -27,7 +27,7 @@ impl HoldMonitor {
 
     /// Checks the part's pose in the TCP frame `now` during `phase`: a slip or a drop is a
     /// failure with the drift in its detail.
-    pub fn check(&self, phase: &str, now: &Isometry3<f64>) -> Result<(), Failure> {
+    pub fn check(&self, phase: Phase, now: &Isometry3<f64>) -> Result<(), Failure> {
         let drift = self.drift_m(now);
         if drift <= self.slip_tolerance_m {
             return Ok(());
@@ -64,18 +64,18 @@ mod tests {
     #[test]
     fn a_part_within_the_tolerance_is_held() {
         let now = Isometry3::translation(0.0, 0.01, -0.03);
-        assert_eq!(monitor().check("lift", &now), Ok(()));
+        assert_eq!(monitor().check(Phase::Lift, &now), Ok(()));
     }
 
     #[test]
     fn a_drift_past_the_tolerance_is_a_slip_and_a_large_one_a_drop() {
-        let Err(slip) = monitor().check("transport", &Isometry3::translation(0.0, 0.0, -0.05))
+        let Err(slip) = monitor().check(Phase::Transport, &Isometry3::translation(0.0, 0.0, -0.05))
         else {
             panic!("a 30 mm drift passed");
         };
         assert_eq!(slip.reason, FailureReason::Slipped);
         assert!(slip.detail.contains("30.0 mm") && slip.detail.contains("transport"));
-        let Err(drop) = monitor().check("transport", &Isometry3::translation(0.0, 0.0, -0.09))
+        let Err(drop) = monitor().check(Phase::Transport, &Isometry3::translation(0.0, 0.0, -0.09))
         else {
             panic!("a 70 mm drift passed");
         };

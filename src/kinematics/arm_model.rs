@@ -92,12 +92,17 @@ impl JointLimit {
 pub struct ArmModel {
     /// Modified DH rows, joint 1 to 6.
     pub dh: [DhRow; DOF],
-    /// `theta_dh = q + theta_offsets_rad`.
+    /// `theta_dh = joint_signs * q + theta_offsets_rad`.
     pub theta_offsets_rad: JointVector,
+    /// +1 where a joint turns about its DH z axis, -1 where the URDF's axis points the other
+    /// way.
+    pub joint_signs: JointVector,
     /// Joint limits in the controller convention.
     pub limits: [JointLimit; DOF],
     /// Pose of DH frame 0 in the URDF `base_link` frame.
     pub base_from_dh0: Isometry3<f64>,
+    /// Pose of the flange in DH frame 6, where they differ (`None`: the flange is DH frame 6).
+    pub dh6_from_flange: Option<Isometry3<f64>>,
     /// Pose of the tool centre point in the flange frame.
     pub flange_from_tcp: Isometry3<f64>,
 }
@@ -126,6 +131,7 @@ impl ArmModel {
         Self {
             dh,
             theta_offsets_rad: [0.0, 90.0 * deg, 0.0, -90.0 * deg, 0.0, 0.0],
+            joint_signs: [1.0; DOF],
             limits: [
                 big(SHOULDER_SPEED_RAD_S, 30.0),
                 big(SHOULDER_SPEED_RAD_S, 30.0),
@@ -135,6 +141,7 @@ impl ArmModel {
                 big(2.6, 25.0),
             ],
             base_from_dh0: Isometry3::translation(0.0, 0.0, 0.0235),
+            dh6_from_flange: None,
             flange_from_tcp: Isometry3::identity(),
         }
     }
@@ -145,14 +152,48 @@ impl ArmModel {
         self
     }
 
+    /// The DH angle of joint `i` at controller angle `q_rad`.
+    pub fn theta(&self, i: usize, q_rad: f64) -> f64 {
+        if self.joint_signs[i] < 0.0 {
+            self.theta_offsets_rad[i] - q_rad
+        } else {
+            q_rad + self.theta_offsets_rad[i]
+        }
+    }
+
     /// DH angles from controller joint angles.
     pub fn theta_from_q(&self, q: &JointVector) -> JointVector {
-        std::array::from_fn(|i| q[i] + self.theta_offsets_rad[i])
+        std::array::from_fn(|i| self.theta(i, q[i]))
     }
 
     /// Controller joint angles from DH angles.
     pub fn q_from_theta(&self, theta: &JointVector) -> JointVector {
-        std::array::from_fn(|i| theta[i] - self.theta_offsets_rad[i])
+        std::array::from_fn(|i| {
+            if self.joint_signs[i] < 0.0 {
+                self.theta_offsets_rad[i] - theta[i]
+            } else {
+                theta[i] - self.theta_offsets_rad[i]
+            }
+        })
+    }
+
+    /// Whether `other` puts the flange where this model does at every joint angle (checked at
+    /// a spread of angles, within `tolerance` metres and radians), with the same position and
+    /// speed limits.
+    pub fn same_arm_as(&self, other: &ArmModel, tolerance: f64) -> bool {
+        let limits_agree = self.limits.iter().zip(&other.limits).all(|(a, b)| {
+            a.min_rad == b.min_rad
+                && a.max_rad == b.max_rad
+                && a.max_velocity_rad_s == b.max_velocity_rad_s
+        });
+        limits_agree
+            && (0..32).all(|k| {
+                let q: JointVector =
+                    std::array::from_fn(|i| f64::from((k * 5 + i as i32 * 7) % 17) * 0.35 - 2.8);
+                let (a, b) = (super::flange_pose(self, &q), super::flange_pose(other, &q));
+                (a.translation.vector - b.translation.vector).norm() <= tolerance
+                    && a.rotation.angle_to(&b.rotation) <= tolerance
+            })
     }
 
     /// Checks that every joint is finite and within its limits.

@@ -9,6 +9,12 @@ pub enum KinematicsError {
         /// What is wrong with the table.
         reason: String,
     },
+    /// A robot description that cannot be read.
+    #[error("the URDF cannot be read: {reason}")]
+    Urdf {
+        /// What the reader said.
+        reason: String,
+    },
     /// A joint value is outside its limits.
     #[error("joint {joint} at {value_rad} rad is outside [{min_rad}, {max_rad}]")]
     JointOutOfLimit {

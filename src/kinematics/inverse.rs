@@ -16,6 +16,8 @@ const REACH_TOLERANCE: f64 = 1e-9;
 /// Below this `1 - |cos(theta5)|` the wrist counts as straight (singular): `acos` of a cosine
 /// this close to one is noise of order 1e-7 rad, so joint 6 would be read from noise.
 const WRIST_SINGULAR_ONE_MINUS_COS: f64 = 1e-14;
+/// The twists of the DH rows that the closed form solves (`alpha_0` to `alpha_5`), degrees.
+pub(crate) const CLOSED_FORM_ALPHA_DEG: [f64; DOF] = [0.0, 90.0, 180.0, 180.0, -90.0, 90.0];
 /// Solutions whose joints all agree within this are the same solution.
 const DISTINCT_TOLERANCE_RAD: f64 = 1e-9;
 
@@ -152,6 +154,7 @@ fn dh_frame(row: &DhRow, s: f64, c: f64) -> Frame {
 pub struct AnalyticIk {
     arm: ArmModel,
     dh0_from_base: Isometry3<f64>,
+    /// DH frame 6 in the TCP's frame (the flange's, when the flange is DH frame 6).
     tcp_from_flange: Isometry3<f64>,
     /// Lateral offset of the parallel-axis plane from the base z axis, along joint 2's axis.
     lateral_offset_m: f64,
@@ -160,8 +163,7 @@ pub struct AnalyticIk {
 impl AnalyticIk {
     /// A solver for `arm`; fails when its DH table lacks the structure the closed form needs.
     pub fn new(arm: ArmModel) -> Result<Self, KinematicsError> {
-        let expected_alpha_deg = [0.0, 90.0, 180.0, 180.0, -90.0, 90.0];
-        for (i, (row, expected)) in arm.dh.iter().zip(expected_alpha_deg).enumerate() {
+        for (i, (row, expected)) in arm.dh.iter().zip(CLOSED_FORM_ALPHA_DEG).enumerate() {
             let alpha_deg = row.alpha_rad.to_degrees();
             let wrapped = (alpha_deg - expected + 180.0).rem_euclid(360.0) - 180.0;
             if wrapped.abs() > 1e-9 {
@@ -188,7 +190,10 @@ impl AnalyticIk {
         let lateral_offset_m = arm.dh[1].d_m - arm.dh[2].d_m + arm.dh[3].d_m;
         Ok(Self {
             dh0_from_base: arm.base_from_dh0.inverse(),
-            tcp_from_flange: arm.flange_from_tcp.inverse(),
+            tcp_from_flange: match &arm.dh6_from_flange {
+                Some(dh6_from_flange) => (dh6_from_flange * arm.flange_from_tcp).inverse(),
+                None => arm.flange_from_tcp.inverse(),
+            },
             lateral_offset_m,
             arm,
         })

@@ -3,12 +3,14 @@
 
 mod failure;
 mod motion_record;
+mod phase;
 mod trial_record;
 
 pub use failure::{Failure, fail};
-pub use motion_record::{MotionRecord, PhaseSeconds};
+pub use motion_record::MotionRecord;
+pub use phase::{PHASE_COUNT, Phase, PhaseSeconds};
 pub use trial_record::{
-    DecisionRecord, FailureReason, Misidentification, Outcome, PartRecord, Perception,
+    DecisionRecord, FailureReason, Misidentification, Outcome, PartOutcome, PartRecord, Perception,
     StreamPartRecord, StreamRecord, TrialRecord, TrialTiming,
 };
 

@@ -3,54 +3,7 @@
 
 use serde::{Deserialize, Serialize};
 
-/// Simulated seconds spent in each phase of a trial.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
-pub struct PhaseSeconds {
-    /// The belt brings the part to the photo-eye and stops.
-    pub wait: f64,
-    /// The camera (or the oracle) looks.
-    pub perceive: f64,
-    /// Grasp and place are planned.
-    pub plan: f64,
-    /// Over the part.
-    pub approach: f64,
-    /// Down around it.
-    pub descend: f64,
-    /// Jaws close.
-    pub grasp: f64,
-    /// Up with the part.
-    pub lift: f64,
-    /// Over to the bin.
-    pub transport: f64,
-    /// Down into the bin.
-    pub place: f64,
-    /// Jaws open.
-    pub release: f64,
-    /// Up and home.
-    pub retreat: f64,
-    /// A bottle runs through the station.
-    pub pass: f64,
-}
-
-impl PhaseSeconds {
-    /// Every phase's name and seconds, in the order of a pick cycle.
-    pub fn named(&self) -> [(&'static str, f64); 12] {
-        [
-            ("wait", self.wait),
-            ("perceive", self.perceive),
-            ("plan", self.plan),
-            ("approach", self.approach),
-            ("descend", self.descend),
-            ("grasp", self.grasp),
-            ("lift", self.lift),
-            ("transport", self.transport),
-            ("place", self.place),
-            ("release", self.release),
-            ("retreat", self.retreat),
-            ("pass", self.pass),
-        ]
-    }
-}
+use super::PhaseSeconds;
 
 /// The arm's motion over a trial as the physics measured it.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]

@@ -238,7 +238,64 @@ pub struct Misidentification {
     pub identified: String,
 }
 
+/// One part of a trial as every reader of records sees it: a single-part trial is a list of
+/// one, a stream lists each part that reached the pick station.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PartOutcome<'a> {
+    /// The part's place in the trial, from 0.
+    pub index: u32,
+    /// Success (sorted into its correct bin) or failure.
+    pub outcome: Outcome,
+    /// Why it failed, when it did.
+    pub failure: Option<FailureReason>,
+    /// The truth about the part.
+    pub part: &'a PartRecord,
+    /// What perception decided.
+    pub decision: Option<&'a DecisionRecord>,
+    /// The bin the part came to rest in, if any.
+    pub placed_bin: Option<&'a str>,
+    /// Simulated time of the part's pick cycle, s.
+    pub cycle_time_s: f64,
+}
+
+impl PartOutcome<'_> {
+    /// Whether the part came to rest in the bin the truth calls for.
+    pub fn in_correct_bin(&self) -> bool {
+        self.placed_bin == Some(self.part.correct_bin.as_str())
+    }
+}
+
 impl TrialRecord {
+    /// The trial's parts, in order: one for a single-part trial that got as far as drawing its
+    /// part, each part that reached the pick station for a stream.
+    pub fn parts(&self) -> Vec<PartOutcome<'_>> {
+        match (&self.stream, &self.part) {
+            (Some(stream), _) => stream
+                .parts
+                .iter()
+                .map(|p| PartOutcome {
+                    index: p.index,
+                    outcome: p.outcome,
+                    failure: p.failure,
+                    part: &p.part,
+                    decision: p.decision.as_ref(),
+                    placed_bin: p.placed_bin.as_deref(),
+                    cycle_time_s: p.cycle_time_s,
+                })
+                .collect(),
+            (None, Some(part)) => vec![PartOutcome {
+                index: 0,
+                outcome: self.outcome,
+                failure: self.failure,
+                part,
+                decision: self.decision.as_ref(),
+                placed_bin: self.placed_bin.as_deref(),
+                cycle_time_s: self.cycle_time_s,
+            }],
+            (None, None) => Vec::new(),
+        }
+    }
+
     /// A failed trial that got no further than `reason`.
     pub fn failed(index: u32, seed: u64, reason: FailureReason, detail: impl Into<String>) -> Self {
         Self {

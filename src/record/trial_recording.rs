@@ -11,11 +11,10 @@ use rerun::{
 
 use super::convert::{mesh_3d, transform};
 use super::{METROLOGY, OUTCOMES, PART_TIMELINE, SIM_TIME, TRIAL_TIMELINE, trial_root};
-use crate::outcome::{DecisionRecord, Outcome, PartRecord, TrialRecord};
+use crate::outcome::{DecisionRecord, Outcome, PartRecord, Phase, TrialRecord};
 use crate::render::mesh::Mesh;
 use crate::render::{CameraRig, ObjectKind, Scene};
 use crate::scenario::Scenario;
-use crate::sim::ARM_JOINTS;
 use crate::task::{CellView, PerceptionFrame, TrialObserver};
 
 /// Segments of a fitted circle drawn over the image.
@@ -41,7 +40,7 @@ pub struct TrialRecording {
     moving: Vec<MovingObject>,
     parts_seen: usize,
     bottles_seen: Vec<RigidBodyHandle>,
-    phase: &'static str,
+    phase: Option<Phase>,
 }
 
 impl TrialRecording {
@@ -61,7 +60,7 @@ impl TrialRecording {
             moving: Vec::new(),
             parts_seen: 0,
             bottles_seen: Vec::new(),
-            phase: "",
+            phase: None,
         }
     }
 
@@ -219,7 +218,8 @@ impl TrialObserver for TrialRecording {
         self.log_static("cell", &ViewCoordinates::RIGHT_HAND_Z_UP());
         self.log_scene(scenario, view);
         self.log_camera(scenario);
-        self.log_static("joints_rad", &SeriesLines::new().with_names(ARM_JOINTS));
+        let joints = view.cell.arm.kinematics().joints.clone();
+        self.log_static("joints_rad", &SeriesLines::new().with_names(joints));
         self.log_static(
             "gripper/grip_force_n",
             &SeriesLines::new().with_names(["left jaw", "right jaw"]),
@@ -251,8 +251,8 @@ impl TrialObserver for TrialRecording {
             "gripper/force_limit_n",
             &Scalars::single(view.grip_force_limit_n),
         );
-        if view.phase != self.phase {
-            self.phase = view.phase;
+        if Some(view.phase) != self.phase {
+            self.phase = Some(view.phase);
             self.log(
                 "log",
                 &TextLog::new(format!("phase: {}", view.phase)).with_level(TextLogLevel::DEBUG),

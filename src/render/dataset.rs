@@ -8,6 +8,7 @@ use std::path::{Path, PathBuf};
 
 use super::renderer::Renderer;
 use super::shot::{CameraRig, ObjectTruth, Shot, ShotError};
+use crate::cell::UrdfSource;
 use crate::scenario::Scenario;
 
 /// Why a dataset could not be written.
@@ -77,7 +78,7 @@ pub fn yolo_labels(truths: &[ObjectTruth], width_px: u32, height_px: u32) -> Str
 /// Writes `count` shots of `scenario` under `out`, rendered at `rig`'s resolution.
 pub fn export(
     scenario: &Scenario,
-    urdf: Option<&(PathBuf, String)>,
+    urdf: Option<&UrdfSource>,
     rig: &CameraRig,
     renderer: &mut Renderer,
     count: u64,

@@ -3,7 +3,7 @@
 //! realism drawn for the frame (lights, stains and dirt, pose jitter, sensor effects), plus the
 //! ground truth of every labelled object as the rendered camera sees it.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use serde::Serialize;
@@ -13,7 +13,7 @@ use super::renderer::{Exposure, GpuScene, Light, MAX_STAIN_BLOBS, Renderer, Stai
 use super::scene::{ObjectKind, Scene, SceneObject};
 use super::sensor::SensorDraw;
 use crate::camera::CameraCalibration;
-use crate::cell::{Cell, CellError};
+use crate::cell::{Cell, CellError, CellModel, UrdfSource};
 use crate::rng::SimRng;
 use crate::scenario::{Scenario, SensorSection};
 
@@ -143,7 +143,7 @@ pub struct Shot {
 pub fn scenario_urdf(
     scenario: &Scenario,
     scenario_path: &Path,
-) -> Result<Option<(PathBuf, String)>, ShotError> {
+) -> Result<Option<UrdfSource>, ShotError> {
     let Some(relative) = &scenario.robot.urdf else {
         return Ok(None);
     };
@@ -157,7 +157,7 @@ pub fn scenario_urdf(
             path: path.clone(),
         }))
     })?;
-    Ok(Some((path, text)))
+    Ok(Some(UrdfSource { path, text }))
 }
 
 impl Shot {
@@ -166,13 +166,14 @@ impl Shot {
     /// offset from it, and the frame's realism from `sensor`.
     pub fn pick_station(
         scenario: &Scenario,
-        urdf: Option<&(PathBuf, String)>,
+        urdf: Option<&UrdfSource>,
         rig: &CameraRig,
         sensor: &SensorSection,
         index: u64,
     ) -> Result<Self, ShotError> {
         let mut rng = SimRng::derive(scenario.seed ^ SHOT_SALT, index);
-        let cell = Cell::build(scenario, urdf, &mut rng)?;
+        let model = CellModel::with_urdf(scenario.clone(), urdf.cloned())?;
+        let cell = Cell::build(&model, &mut rng)?;
         let mut scene = Scene::from_cell(&cell, scenario);
         let Some(first) = cell.items.parts().first() else {
             return Err(ShotError::Camera("the cell has no part".into()));

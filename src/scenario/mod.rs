@@ -3,7 +3,9 @@
 //! Every field is validated on load; an error names the file, the key and the reason.
 
 mod camera_sections;
+mod extends;
 mod overrides;
+mod robot_arm;
 mod validate;
 
 use std::path::{Path, PathBuf};
@@ -13,10 +15,13 @@ use serde::{Deserialize, Serialize};
 pub use camera_sections::{
     CameraSection, DEFAULT_CAMERA_HEIGHT_ABOVE_BELT_M, LightSpec, LightingSection, SensorSection,
 };
+pub use extends::EXTENDS_KEY;
 pub use overrides::{
     Override, OverrideSyntaxError, SweepAxis, parse_value, split_values, sweep_grid,
 };
 pub use validate::ScenarioError;
+
+use extends::ScenarioDocument;
 
 /// A whole scenario.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -412,20 +417,27 @@ impl Scenario {
 
     /// Reads and validates a scenario file.
     pub fn load(path: &Path) -> Result<Self, ScenarioError> {
-        let text = std::fs::read_to_string(path).map_err(|e| ScenarioError {
-            file: path.to_path_buf(),
-            key: String::new(),
-            reason: format!("cannot read: {e}"),
-        })?;
-        Self::from_toml(&text, path)
+        Self::from_toml(&read(path)?, path)
     }
 
-    /// Parses and validates scenario TOML; `path` names the source in errors.
+    /// Parses and validates scenario TOML; `path` names the source in errors, and the bases
+    /// that an `extends` key names are read relative to its folder.
     pub fn from_toml(text: &str, path: &Path) -> Result<Self, ScenarioError> {
-        let scenario: Scenario =
-            toml::from_str(text).map_err(|e| ScenarioError::from_toml(path, text, &e))?;
-        scenario.validate(path)?;
+        let document = ScenarioDocument::resolve(text, path)?;
+        let scenario: Scenario = if document.has_bases() {
+            document.deserialize(document.table.clone())?
+        } else {
+            toml::from_str(text).map_err(|e| ScenarioError::from_toml(path, text, &e))?
+        };
+        scenario.validate(path).map_err(|e| document.blame(e))?;
         Ok(scenario)
+    }
+
+    /// The files a scenario file is made of: itself, then each base it extends, with their
+    /// bytes (a batch's identity covers them all).
+    pub fn source_files(path: &Path) -> Result<Vec<(PathBuf, String)>, ScenarioError> {
+        let text = read(path)?;
+        Ok(ScenarioDocument::resolve(&text, path)?.sources)
     }
 
     /// The bin a part of type `part_type` goes to when accepted.
@@ -448,4 +460,13 @@ impl Scenario {
     pub fn reject_bin(&self) -> Option<&Bin> {
         self.bins.iter().find(|b| b.reject)
     }
+}
+
+/// The text of the scenario file at `path`.
+fn read(path: &Path) -> Result<String, ScenarioError> {
+    std::fs::read_to_string(path).map_err(|e| ScenarioError {
+        file: path.to_path_buf(),
+        key: String::new(),
+        reason: format!("cannot read: {e}"),
+    })
 }

@@ -13,6 +13,7 @@ use std::fmt;
 use std::path::Path;
 use std::str::FromStr;
 
+use super::extends::ScenarioDocument;
 use super::{Scenario, ScenarioError};
 
 /// One `KEY=VALUE` override.
@@ -274,40 +275,53 @@ fn rest_of(path: &[Segment], from: usize) -> String {
         .join(".")
 }
 
-/// `text` with `overrides` applied in order, as TOML text.
-fn apply(text: &str, overrides: &[Override], path: &Path) -> Result<String, ScenarioError> {
-    let mut document: toml::Table = text.parse().map_err(|e: toml::de::Error| {
-        let reason = e.message().to_owned();
-        ScenarioError {
-            file: path.to_path_buf(),
-            key: String::new(),
-            reason,
-        }
-    })?;
+/// `document` with `overrides` applied in order.
+fn apply(
+    document: &ScenarioDocument,
+    overrides: &[Override],
+    path: &Path,
+) -> Result<toml::Table, ScenarioError> {
+    let mut table = document.table.clone();
     for o in overrides {
-        set_path(&mut document, &o.key, o.value.clone()).map_err(|reason| ScenarioError {
+        set_path(&mut table, &o.key, o.value.clone()).map_err(|reason| ScenarioError {
             file: path.to_path_buf(),
             key: o.key.clone(),
             reason: format!("--set {o}: {reason}"),
         })?;
     }
-    toml::to_string(&document).map_err(|e| ScenarioError {
-        file: path.to_path_buf(),
-        key: String::new(),
-        reason: format!("cannot write the overridden document: {e}"),
-    })
+    Ok(table)
+}
+
+impl ScenarioDocument {
+    /// The scenario in `table` (this document, edited or not), parsed but not yet validated; a
+    /// parse error names the file that holds the key it names.
+    pub(super) fn deserialize(&self, table: toml::Table) -> Result<Scenario, ScenarioError> {
+        toml::Value::Table(table)
+            .try_into()
+            .map_err(|e: toml::de::Error| {
+                let reason = e.message().to_owned();
+                let named = reason.split('`').nth(1).filter(|_| reason.contains('`'));
+                match named.and_then(|key| Some((key, self.file_holding(key)?))) {
+                    Some((key, file)) => ScenarioError {
+                        file: file.to_path_buf(),
+                        key: key.to_owned(),
+                        reason,
+                    },
+                    None => ScenarioError {
+                        file: self.top_file().to_path_buf(),
+                        key: String::new(),
+                        reason,
+                    },
+                }
+            })
+    }
 }
 
 impl Scenario {
     /// Reads a scenario file, applies `overrides` to its TOML document, then parses and
     /// validates the result.
     pub fn load_with(path: &Path, overrides: &[Override]) -> Result<Self, ScenarioError> {
-        let text = std::fs::read_to_string(path).map_err(|e| ScenarioError {
-            file: path.to_path_buf(),
-            key: String::new(),
-            reason: format!("cannot read: {e}"),
-        })?;
-        Self::from_toml_with(&text, path, overrides)
+        Self::from_toml_with(&super::read(path)?, path, overrides)
     }
 
     /// As [`Scenario::from_toml`], with `overrides` applied to the document first. The file's
@@ -322,28 +336,24 @@ impl Scenario {
         if overrides.is_empty() {
             return Ok(scenario);
         }
-        let applied = apply(text, overrides, path)?;
-        let parse = |applied: &str| -> Result<Self, ScenarioError> {
-            let scenario: Scenario = toml::from_str(applied).map_err(|e| ScenarioError {
-                file: path.to_path_buf(),
-                key: String::new(),
-                reason: e.message().to_owned(),
-            })?;
-            scenario.validate(path)?;
+        let document = ScenarioDocument::resolve(text, path)?;
+        let parse = |applied: toml::Table| -> Result<Self, ScenarioError> {
+            let scenario = document.deserialize(applied)?;
+            scenario.validate(path).map_err(|e| document.blame(e))?;
             Ok(scenario)
         };
-        let error = match parse(&applied) {
+        let error = match parse(apply(&document, overrides, path)?) {
             Ok(scenario) => return Ok(scenario),
             Err(error) => error,
         };
         // Blame the first override after which the document no longer loads (every prefix
         // applies, since the whole list did).
         let culprit = (1..overrides.len())
-            .find(|&n| apply(text, &overrides[..n], path).is_ok_and(|t| parse(&t).is_err()))
+            .find(|&n| apply(&document, &overrides[..n], path).is_ok_and(|t| parse(t).is_err()))
             .unwrap_or(overrides.len());
-        let error = apply(text, &overrides[..culprit], path)
+        let error = apply(&document, &overrides[..culprit], path)
             .ok()
-            .and_then(|t| parse(&t).err())
+            .and_then(|t| parse(t).err())
             .unwrap_or(error);
         let o = &overrides[culprit - 1];
         let key = if error.key.is_empty() {

@@ -180,11 +180,12 @@ impl Scenario {
         if !(1..=64).contains(&self.physics.solver_iterations) {
             return Err(c.fail("physics.solver_iterations", "must lie in [1, 64]"));
         }
-        self.validate_robot(&c)?;
+        let arm = self.arm_model(file)?;
+        self.validate_robot(&c, &arm)?;
         self.validate_conveyor(&c)?;
         self.validate_parts(&c)?;
         self.validate_bottle(&c)?;
-        self.validate_bins(&c)?;
+        self.validate_bins(&c, &arm)?;
         self.validate_stream(&c)?;
         let task = &self.task;
         c.positive_up_to("task.wait_timeout_s", task.wait_timeout_s, 3600.0)?;
@@ -333,7 +334,7 @@ impl Scenario {
         Ok(())
     }
 
-    fn validate_robot(&self, c: &Checker) -> Result<(), ScenarioError> {
+    fn validate_robot(&self, c: &Checker, arm: &ArmModel) -> Result<(), ScenarioError> {
         let robot = &self.robot;
         c.point_within("robot.base_xyz_m", &robot.base_xyz_m, MAX_CELL_REACH_M)?;
         c.positive_up_to("robot.pedestal_side_m", robot.pedestal_side_m, 2.0)?;
@@ -345,7 +346,6 @@ impl Scenario {
             0.01,
             1.0,
         )?;
-        let arm = ArmModel::aubo_i5();
         if let Err(e) = arm.check_limits(&robot.home_q_rad) {
             return Err(c.fail("robot.home_q_rad", e.to_string()));
         }
@@ -503,7 +503,7 @@ impl Scenario {
         Ok(())
     }
 
-    fn validate_bins(&self, c: &Checker) -> Result<(), ScenarioError> {
+    fn validate_bins(&self, c: &Checker, arm: &ArmModel) -> Result<(), ScenarioError> {
         let mut names = BTreeSet::new();
         let known: BTreeSet<&str> = self.part_types.iter().map(|p| p.name.as_str()).collect();
         let rejects = self.bins.iter().filter(|b| b.reject).count();
@@ -513,10 +513,7 @@ impl Scenario {
                 format!("needs exactly one reject bin, got {rejects}"),
             ));
         }
-        let arm = ArmModel::aubo_i5().with_tool(crate::kinematics::gripper_tcp());
-        let Ok(ik) = AnalyticIk::new(arm) else {
-            return Err(c.fail("robot", "arm geometry unsupported"));
-        };
+        let ik = AnalyticIk::new(arm.clone()).map_err(|e| c.fail("robot.urdf", e.to_string()))?;
         let tallest_m = self
             .part_types
             .iter()

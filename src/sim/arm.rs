@@ -10,23 +10,9 @@ use rapier3d_urdf::{UrdfLoaderOptions, UrdfMultibodyOptions, UrdfRobot};
 use super::urdf_graph::{tree_error, value_error};
 use super::weld::{WeldedRobot, weld_fixed_links};
 use super::{SimError, Tag, World};
-use crate::kinematics::{DOF, JointVector};
+use crate::kinematics::{BUILTIN_URDF, BUILTIN_URDF_PATH, DOF, JointVector, UrdfArm};
 use crate::math::{pose_from_physics, pose_to_physics};
 
-/// Where the built-in URDF lives in the source tree (named in errors).
-pub const BUILTIN_URDF_PATH: &str = "assets/urdf/aubo_i5.urdf";
-/// The project's AUBO i5 + gripper description.
-const BUILTIN_URDF: &str = include_str!("../../assets/urdf/aubo_i5.urdf");
-
-/// Names of the six arm joints in the URDF, base to flange.
-pub const ARM_JOINTS: [&str; DOF] = [
-    "shoulder_joint",
-    "upperArm_joint",
-    "foreArm_joint",
-    "wrist1_joint",
-    "wrist2_joint",
-    "wrist3_joint",
-];
 /// Names of the two finger joints in the URDF.
 pub const FINGER_JOINTS: [&str; 2] = ["finger_left_joint", "finger_right_joint"];
 /// Names of the finger links, left then right: their contacts with a part make the grip.
@@ -37,8 +23,6 @@ pub const JAW_SPEED_M_S: f64 = 0.1;
 const REVOLUTE_COORD: usize = 3;
 /// Index of a prismatic joint's offset in a multibody joint's coordinates.
 const PRISMATIC_COORD: usize = 0;
-/// The flange link.
-const FLANGE_LINK: &str = "wrist3_Link";
 
 /// Servo gains of the joint position controllers (acceleration-based, per unit inertia).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -81,6 +65,7 @@ pub struct SimArm {
     links: Vec<ArmLink>,
     world_from_base: Isometry3<f64>,
     gains: ArmGains,
+    kinematics: UrdfArm,
 }
 
 impl SimArm {
@@ -136,6 +121,8 @@ impl SimArm {
         if let Some(reason) = tree_error(&description).or_else(|| value_error(&description)) {
             return Err(urdf_error(reason));
         }
+        let kinematics =
+            UrdfArm::from_robot(&description).map_err(|e| urdf_error(e.to_string()))?;
         let WeldedRobot {
             robot,
             collider_sources,
@@ -174,7 +161,7 @@ impl SimArm {
         };
         let mut joints = [MultibodyJointHandle::invalid(); DOF];
         let mut efforts = [0.0f32; DOF];
-        for (i, name) in ARM_JOINTS.iter().enumerate() {
+        for (i, name) in kinematics.joints.iter().enumerate() {
             (joints[i], efforts[i]) = find_joint(name)?;
         }
         let mut fingers = [MultibodyJointHandle::invalid(); 2];
@@ -205,10 +192,13 @@ impl SimArm {
         let links: Vec<ArmLink> = links.into_iter().map(|(_, link)| link).collect();
         let Some(flange_body) = links
             .iter()
-            .find(|link| link.name == FLANGE_LINK)
+            .find(|link| link.name == kinematics.flange_link)
             .map(|link| link.body)
         else {
-            return Err(urdf_error(format!("no link named `{FLANGE_LINK}`")));
+            return Err(urdf_error(format!(
+                "no link named `{}`",
+                kinematics.flange_link
+            )));
         };
         let arm = Self {
             joints,
@@ -218,8 +208,14 @@ impl SimArm {
             links,
             world_from_base,
             gains: ArmGains::default(),
+            kinematics,
         };
         Ok(arm)
+    }
+
+    /// The arm's joints, links and kinematic model as its URDF gives them.
+    pub fn kinematics(&self) -> &UrdfArm {
+        &self.kinematics
     }
 
     /// Pose of the arm's `base_link` in the world.

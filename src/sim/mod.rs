@@ -3,6 +3,7 @@
 //! that say what each collider is.
 
 mod arm;
+mod contacts;
 mod conveyor;
 mod error;
 mod items;
@@ -13,7 +14,7 @@ mod urdf_graph;
 mod weld;
 mod world;
 
-pub use arm::{ARM_JOINTS, ArmGains, ArmLink, FINGER_JOINTS, FINGER_LINKS, JAW_SPEED_M_S, SimArm};
+pub use arm::{ArmGains, ArmLink, FINGER_JOINTS, FINGER_LINKS, JAW_SPEED_M_S, SimArm};
 pub use conveyor::{BELT_ACCEL_M_S2, ConveyorHooks};
 pub use error::SimError;
 pub use items::{BottleItem, BottlePlacement, ItemSet, PartItem, body_pose};

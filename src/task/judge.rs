@@ -1,7 +1,7 @@
 //! Judging a pick cycle against the truth: which bin a part belongs in, whether the bin it
 //! reached is right (with the metrology's uncertainty zone), and what the bottles say.
 
-use crate::outcome::{Failure, FailureReason, PartRecord};
+use crate::outcome::{Failure, FailureReason, PartRecord, Phase};
 use crate::scenario::Scenario;
 use crate::sim::PartInstance;
 
@@ -54,7 +54,7 @@ pub struct CycleEvidence<'a> {
     /// Whether a bottle was lifted.
     pub bottle_lifted: bool,
     /// Whether the robot touched a bottle, and in which phase it first did.
-    pub touch_phase: Option<&'static str>,
+    pub touch_phase: Option<Phase>,
     /// The largest move of a bottle since the belt stopped, m.
     pub bottle_displacement_m: f64,
 }
@@ -210,7 +210,7 @@ mod tests {
         };
         assert_eq!(failure.reason, FailureReason::DistractorPicked);
         let touched = CycleEvidence {
-            touch_phase: Some("descend"),
+            touch_phase: Some(Phase::Descend),
             bottle_displacement_m: 0.0002,
             ..clean(Some("group_a"))
         };

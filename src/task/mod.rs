@@ -14,11 +14,12 @@ mod runner;
 mod stream;
 mod trial;
 
+pub use crate::outcome::Phase;
 pub use camera_percept::{CameraPerception, StationItem, TargetRule};
 pub use feeder::{FeedItem, Feeder};
 pub use observer::{
     BoreView, CellView, DetectionView, PerceptionFrame, SAMPLE_RATE_HZ, TrialObserver,
     TrialObserverFactory,
 };
-pub use phase::{Phase, PhaseDeadline};
+pub use phase::PhaseDeadline;
 pub use runner::{CellTrialRunner, RunnerError};

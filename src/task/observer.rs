@@ -11,7 +11,7 @@ use rapier3d::prelude::RigidBodyHandle;
 
 use crate::cell::Cell;
 use crate::kinematics::JointVector;
-use crate::outcome::TrialRecord;
+use crate::outcome::{Phase, TrialRecord};
 use crate::scenario::Scenario;
 use crate::sim::{FINGER_LINKS, PartItem, Tag};
 
@@ -42,7 +42,7 @@ pub struct CellView<'a> {
     /// The cell: world, arm, bins, and the registry of parts and bottles.
     pub cell: &'a Cell,
     /// The task phase running now (`wait`, `approach`, `grasp`, ...).
-    pub phase: &'static str,
+    pub phase: Phase,
     /// The joint angles the controller commands, rad.
     pub joint_command_rad: JointVector,
     /// The grip force the jaws may push with, per jaw, N.
@@ -96,36 +96,13 @@ impl<'a> CellView<'a> {
     /// The force with which each jaw (left, right) presses on parts in the last step, N: the
     /// contact solver's normal impulses over the time step.
     pub fn jaw_grip_force_n(&self) -> [f64; 2] {
-        let physics = &self.cell.world.physics;
-        let dt_s = self.cell.world.params().dt_s;
+        let world = &self.cell.world;
+        let dt_s = world.params().dt_s;
         FINGER_LINKS.map(|link| {
             let Some(body) = self.cell.arm.link_body(link) else {
                 return 0.0;
             };
-            let Some(rb) = physics.bodies.get(body) else {
-                return 0.0;
-            };
-            let impulse: f64 = rb
-                .colliders()
-                .iter()
-                .flat_map(|&collider| {
-                    physics
-                        .narrow_phase
-                        .contact_pairs_with(collider)
-                        .filter(move |pair| {
-                            let other = if pair.collider1 == collider {
-                                pair.collider2
-                            } else {
-                                pair.collider1
-                            };
-                            physics
-                                .colliders
-                                .get(other)
-                                .is_some_and(|c| c.user_data == Tag::Part.bits())
-                        })
-                })
-                .map(|pair| f64::from(pair.total_impulse_magnitude()))
-                .sum();
+            let impulse = world.contact_impulse_with(body, Tag::Part);
             impulse / dt_s
         })
     }

@@ -5,10 +5,9 @@ use std::time::Instant;
 
 use super::camera_percept::Sighting;
 use super::judge::{self, CycleEvidence};
-use super::phase::Phase;
 use super::trial::Trial;
 use crate::control::HoldMonitor;
-use crate::outcome::{DecisionRecord, Failure, FailureReason, PartRecord, fail};
+use crate::outcome::{DecisionRecord, Failure, FailureReason, PartRecord, Phase, fail};
 use crate::planning::{JointTrajectory, Payload, Percept, PickPlan, PlacePlan};
 use crate::sim::{JAW_SPEED_M_S, tube_mass_kg};
 
@@ -76,7 +75,7 @@ impl Trial<'_> {
         let evidence = CycleEvidence {
             placed_bin: placed_bin.as_deref(),
             bottle_lifted: self.bottle_lifted(),
-            touch_phase: self.touch_phase.map(Phase::as_str),
+            touch_phase: self.touch_phase,
             bottle_displacement_m: self.bottle_displacement_m(),
         };
         let failure = judge::judge_cycle(self.scenario, &part, result, &evidence);

@@ -1,18 +1,16 @@
 //! The cell's trial runner: builds the cell for each trial and runs its task.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::sync::Arc;
 use std::time::Instant;
 
 use super::camera_percept::{CameraPerception, CameraPerceptionError};
 use super::observer::{CellView, PerceptionFrame, TrialObserver, TrialObserverFactory};
 use super::trial::Trial;
-use crate::cell::{Cell, CellError};
-use crate::kinematics::AnalyticIk;
+use crate::cell::{Cell, CellError, CellModel};
 use crate::outcome::{FailureReason, Perception, TrialRecord, TrialRunner};
 use crate::rng::SimRng;
 use crate::scenario::Scenario;
-use crate::sim::SimError;
 
 /// Why a runner could not be set up.
 #[derive(Debug, thiserror::Error)]
@@ -28,9 +26,7 @@ pub enum RunnerError {
 /// Runs sorting trials of a scenario in the cell.
 #[derive(Debug, Clone)]
 pub struct CellTrialRunner {
-    scenario: Scenario,
-    urdf: Option<(PathBuf, String)>,
-    ik: AnalyticIk,
+    model: CellModel,
     camera: Option<Arc<CameraPerception>>,
     observers: Vec<Arc<dyn TrialObserverFactory>>,
 }
@@ -55,22 +51,6 @@ impl CellTrialRunner {
         perception: Perception,
         model_path: &Path,
     ) -> Result<Self, RunnerError> {
-        let urdf = match &scenario.robot.urdf {
-            Some(relative) => {
-                let path = scenario_path
-                    .parent()
-                    .unwrap_or(Path::new("."))
-                    .join(relative);
-                let text = std::fs::read_to_string(&path).map_err(|e| {
-                    CellError::Sim(SimError::Urdf {
-                        reason: e.to_string(),
-                        path: path.clone(),
-                    })
-                })?;
-                Some((path, text))
-            }
-            None => None,
-        };
         let camera = match perception {
             Perception::Camera => {
                 let camera = CameraPerception::new(&scenario, model_path.to_path_buf())
@@ -79,12 +59,9 @@ impl CellTrialRunner {
             }
             Perception::Oracle => None,
         };
-        let ik = AnalyticIk::new(Cell::arm_model())
-            .map_err(|e| CellError::Sim(SimError::Kinematics(e)))?;
+        let model = CellModel::new(scenario, scenario_path)?;
         Ok(Self {
-            scenario,
-            urdf,
-            ik,
+            model,
             camera,
             observers: Vec::new(),
         })
@@ -98,13 +75,19 @@ impl CellTrialRunner {
 
     /// The scenario run.
     pub fn scenario(&self) -> &Scenario {
-        &self.scenario
+        self.model.scenario()
+    }
+
+    /// The cell's model.
+    pub fn model(&self) -> &CellModel {
+        &self.model
     }
 
     /// Overrides every part type's grip force (for experiments such as a too-weak gripper).
     pub fn set_grip_force_n(&mut self, force_n: f64) {
-        self.scenario.gripper.grip_force_n = force_n;
-        for part in &mut self.scenario.part_types {
+        let scenario = self.model.scenario_mut();
+        scenario.gripper.grip_force_n = force_n;
+        for part in &mut scenario.part_types {
             part.grip_force_n = None;
         }
     }
@@ -121,18 +104,11 @@ impl TrialRunner for CellTrialRunner {
                 many.iter().map(|f| f.observer(index)).collect(),
             ))),
         };
-        let mut record = match Cell::build(&self.scenario, self.urdf.as_ref(), &mut rng) {
+        let mut record = match Cell::build(&self.model, &mut rng) {
             Ok(cell) => {
-                let mut trial = Trial::new(
-                    &self.scenario,
-                    self.camera.as_deref(),
-                    &self.ik,
-                    cell,
-                    rng,
-                    seed,
-                );
+                let mut trial = Trial::new(&self.model, self.camera.as_deref(), cell, rng, seed);
                 trial.attach(observer.as_deref_mut(), index);
-                if self.scenario.is_stream() {
+                if self.model.scenario().is_stream() {
                     trial.run_stream(index, seed)
                 } else {
                     trial.run_single(index, seed)

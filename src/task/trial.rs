@@ -11,11 +11,13 @@ use rapier3d::prelude::*;
 use super::camera_percept::CameraPerception;
 use super::feeder::Feeder;
 use super::observer::{CellView, ObserverSlot, TrialObserver};
-use super::phase::{Phase, PhaseDeadline};
-use crate::cell::Cell;
+use super::phase::PhaseDeadline;
+use crate::cell::{Cell, CellModel};
 use crate::control::{BeltDrive, GripperDrive, HoldMonitor, TrajectoryFollower};
-use crate::kinematics::{AnalyticIk, ArmModel, JointVector};
-use crate::outcome::{Failure, FailureReason, Misidentification, MotionRecord, TrialTiming, fail};
+use crate::kinematics::{ArmModel, JointVector};
+use crate::outcome::{
+    Failure, FailureReason, Misidentification, MotionRecord, Phase, TrialTiming, fail,
+};
 use crate::planning::{JointTrajectory, PickPlanner, capture_robot_shapes, scenery_obstacles};
 use crate::rng::SimRng;
 use crate::scenario::Scenario;
@@ -67,20 +69,20 @@ impl<'a> Trial<'a> {
     /// A trial of `scenario` in `cell` as built; `rng` continues the cell's stream (the feeder
     /// draws from it).
     pub(crate) fn new(
-        scenario: &'a Scenario,
+        cell_model: &'a CellModel,
         camera: Option<&'a CameraPerception>,
-        ik: &AnalyticIk,
         cell: Cell,
         rng: SimRng,
         seed: u64,
     ) -> Self {
-        let model = Cell::arm_model();
+        let scenario = cell_model.scenario();
+        let model = cell_model.arm_model().clone();
         let home = scenario.robot.home_q_rad;
         let world_from_base = *cell.arm.world_from_base();
         let planner = PickPlanner {
             robot_shapes: capture_robot_shapes(&cell.world, &cell.arm, &model, &home),
             model,
-            ik: ik.clone(),
+            ik: cell_model.ik().clone(),
             world_from_base,
             finger_reference_m: cell.finger_reference_m,
             obstacles: scenery_obstacles(&cell.scenery, &world_from_base.inverse()),
@@ -138,7 +140,7 @@ impl<'a> Trial<'a> {
     pub(crate) fn observe(&mut self, f: impl FnOnce(&mut ObserverSlot<'a>, &CellView<'_>)) {
         let view = CellView {
             cell: &self.cell,
-            phase: self.phase.as_str(),
+            phase: self.phase,
             joint_command_rad: self.q,
             grip_force_limit_n: self.gripper.force_n(),
         };
@@ -250,7 +252,7 @@ impl<'a> Trial<'a> {
                     let tcp_from_part = self.tcp_from_part()?;
                     let drift_mm = hold.drift_m(&tcp_from_part) * 1e3;
                     self.motion.grip_drift_mm = self.motion.grip_drift_mm.max(drift_mm);
-                    hold.check(phase.as_str(), &tcp_from_part)?;
+                    hold.check(phase, &tcp_from_part)?;
                 }
             }
         }
@@ -327,7 +329,7 @@ impl<'a> Trial<'a> {
 
     /// Books the step's simulated time to the phase, and checks the joints as measured.
     fn measure_motion(&mut self, dt_s: f64) {
-        *self.phase.seconds_in(&mut self.motion.phase_s) += dt_s;
+        self.motion.phase_s[self.phase] += dt_s;
         let q = self.cell.arm.joint_positions(&self.cell.world);
         let motion = &mut self.motion;
         for (j, limit) in self.planner.model.limits.iter().enumerate() {
@@ -352,32 +354,9 @@ impl<'a> Trial<'a> {
     }
 
     fn robot_touches(&self, bottle: RigidBodyHandle) -> bool {
-        let physics = &self.cell.world.physics;
-        let Some(rb) = physics.bodies.get(bottle) else {
-            return false;
-        };
-        rb.colliders().iter().any(|&collider| {
-            physics
-                .narrow_phase
-                .contact_pairs_with(collider)
-                .any(|pair| {
-                    let other = if pair.collider1 == collider {
-                        pair.collider2
-                    } else {
-                        pair.collider1
-                    };
-                    // Touching, not merely within the solver's prediction distance.
-                    let touching = pair
-                        .manifolds()
-                        .iter()
-                        .any(|m| m.points.iter().any(|p| p.dist <= TOUCH_DISTANCE_M as f32));
-                    touching
-                        && physics
-                            .colliders
-                            .get(other)
-                            .is_some_and(|c| c.user_data == Tag::Robot.bits())
-                })
-        })
+        self.cell
+            .world
+            .touches(bottle, Tag::Robot, TOUCH_DISTANCE_M)
     }
 
     /// The bin the handled part rests in, if any.
