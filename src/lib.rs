@@ -14,6 +14,7 @@ pub mod camera;
 pub mod render;
 pub mod detect;
 pub mod perception;
+pub mod station;
 pub mod planning;
 pub mod control;
 pub mod task;

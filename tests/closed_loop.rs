@@ -10,8 +10,7 @@ use nalgebra::{Point3, Vector3};
 use twincell::perception::{BoreDetector, BoreDetectorParams};
 use twincell::render::{CameraRig, Renderer, RendererOptions, Shot};
 use twincell::scenario::Scenario;
-use twincell::task::bottle_fit::BottleFitter;
-use twincell::task::camera_percept::{measure_in_window, part_window};
+use twincell::station::{BottleFitter, measure_in_window, part_window};
 
 fn paper_50() -> Scenario {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/paper_50.toml");

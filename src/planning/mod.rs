@@ -3,7 +3,6 @@
 
 mod collision;
 mod payload;
-mod percept;
 mod pick_planner;
 #[cfg(test)]
 mod pick_planner_tests;
@@ -14,7 +13,6 @@ mod trajectory;
 
 pub use collision::{Carried, CollisionChecker, CollisionHit, LinkMount, Obstacle, RobotShape};
 pub use payload::{GRIP_SAFETY_FACTOR, Payload};
-pub use percept::{PerceivedObstacle, Percept, bottle_obstacle, part_obstacle};
 pub use pick_planner::{
     GRASP_TCP_ABOVE_BOTTOM_M, PART_OBSTACLE, PickPlan, PickPlanner, PlacePlan, bin_slot,
     scenery_obstacles,

@@ -5,12 +5,12 @@ use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use rapier3d::geometry::SharedShape;
 
 use super::{
-    Carried, CollisionChecker, JointTrajectory, Obstacle, Payload, Percept, RobotShape,
-    straight_line,
+    Carried, CollisionChecker, JointTrajectory, Obstacle, Payload, RobotShape, straight_line,
 };
 use crate::cell::{BinBody, SceneryBox};
 use crate::kinematics::{AnalyticIk, ArmModel, IkSolver, JointVector};
 use crate::outcome::{Failure, FailureReason, fail};
+use crate::station::Percept;
 
 /// Height of the TCP above the part's bottom while grasping: the fingertips stop 8 mm above the
 /// belt.

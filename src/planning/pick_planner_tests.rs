@@ -9,6 +9,7 @@ use crate::cell::BinBody;
 use crate::kinematics::{AnalyticIk, ArmModel, gripper_tcp, tcp_pose};
 use crate::outcome::FailureReason;
 use crate::scenario::{BottleSection, RobotSection};
+use crate::station::{PerceivedObstacle, Percept, bottle_obstacle};
 
 const BELT_TOP_Z: f64 = 0.70;
 

@@ -2,8 +2,6 @@
 //! sequencing perception, planning and control each tick; the stream feeder; the oracle and
 //! camera percept adapters; and the judging of outcomes against the truth.
 
-pub mod bottle_fit;
-pub mod camera_percept;
 mod feeder;
 pub mod judge;
 mod observer;
@@ -15,7 +13,7 @@ mod stream;
 mod trial;
 
 pub use crate::outcome::Phase;
-pub use camera_percept::{CameraPerception, StationItem, TargetRule};
+pub use crate::station::{CameraPerception, StationItem, TargetRule};
 pub use feeder::{FeedItem, Feeder};
 pub use observer::{
     BoreView, CellView, DetectionView, PerceptionFrame, SAMPLE_RATE_HZ, TrialObserver,

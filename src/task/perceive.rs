@@ -3,14 +3,15 @@
 
 use nalgebra::{Isometry3, Point3, Vector3};
 
-use super::camera_percept::{CameraPerception, Sighting, StationItem, TargetRule};
 use super::observer::{BoreView, DetectionView, PerceptionFrame};
 use super::trial::Trial;
 use crate::outcome::{Failure, FailureReason, PartRecord, fail};
-use crate::planning::{Percept, bottle_obstacle, part_obstacle};
 use crate::render::Scene;
 use crate::rng::SimRng;
 use crate::scenario::PartType;
+use crate::station::{
+    CameraPerception, Percept, Sighting, StationItem, TargetRule, bottle_obstacle, part_obstacle,
+};
 
 /// Things on the belt within this distance of the part are obstacles to its pick, m.
 const NEIGHBOURHOOD_M: f64 = 0.45;

@@ -3,13 +3,13 @@
 
 use std::time::Instant;
 
-use super::camera_percept::Sighting;
 use super::judge::{self, CycleEvidence};
 use super::trial::Trial;
 use crate::control::HoldMonitor;
 use crate::outcome::{DecisionRecord, Failure, FailureReason, PartRecord, Phase, fail};
-use crate::planning::{JointTrajectory, Payload, Percept, PickPlan, PlacePlan};
+use crate::planning::{JointTrajectory, Payload, PickPlan, PlacePlan};
 use crate::sim::{JAW_SPEED_M_S, tube_mass_kg};
+use crate::station::{Percept, Sighting};
 
 /// Time for the grip force to build once the drive reaches its end, s.
 const GRIP_BUILD_S: f64 = 0.1;

@@ -4,13 +4,13 @@ use std::path::Path;
 use std::sync::Arc;
 use std::time::Instant;
 
-use super::camera_percept::{CameraPerception, CameraPerceptionError};
 use super::observer::{CellView, PerceptionFrame, TrialObserver, TrialObserverFactory};
 use super::trial::Trial;
 use crate::cell::{Cell, CellError, CellModel};
 use crate::outcome::{FailureReason, Perception, TrialRecord, TrialRunner};
 use crate::rng::SimRng;
 use crate::scenario::Scenario;
+use crate::station::{CameraPerception, CameraPerceptionError};
 
 /// Why a runner could not be set up.
 #[derive(Debug, thiserror::Error)]

@@ -5,12 +5,12 @@
 
 use nalgebra::Point3;
 
-use super::camera_percept::{Sighting, StationItem, TargetRule};
 use super::pick_cycle::Cycle;
 use super::trial::Trial;
 use crate::outcome::{
     Failure, FailureReason, Misidentification, Outcome, StreamPartRecord, StreamRecord, TrialRecord,
 };
+use crate::station::{Sighting, StationItem, TargetRule};
 
 /// Spacing of the points along the photo-eye's beam that the camera checks, m.
 const BEAM_SAMPLE_M: f64 = 0.005;

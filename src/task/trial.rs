@@ -8,7 +8,6 @@ use std::time::Instant;
 use nalgebra::Isometry3;
 use rapier3d::prelude::*;
 
-use super::camera_percept::CameraPerception;
 use super::feeder::Feeder;
 use super::observer::{CellView, ObserverSlot, TrialObserver};
 use super::phase::PhaseDeadline;
@@ -22,6 +21,7 @@ use crate::planning::{JointTrajectory, PickPlanner, capture_robot_shapes, scener
 use crate::rng::SimRng;
 use crate::scenario::Scenario;
 use crate::sim::Tag;
+use crate::station::CameraPerception;
 
 /// A robot collider this close to a bottle counts as touching it, m.
 const TOUCH_DISTANCE_M: f64 = 0.0005;

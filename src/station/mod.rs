@@ -1,0 +1,16 @@
+//! The perception station: what the cell knows of the pick station, and how it comes to know
+//! it. The camera adapter renders the sensor's frame, runs the detector and measures the bores
+//! (`CameraPerception`, its `Sighting`); the bottle fit finds a bottle's pose from its outline;
+//! and `Percept` is what the planner is told: the part's type, place and bore, and the
+//! obstacles near it. Everything here reads images and calibrations, never the world.
+
+pub mod bottle_fit;
+pub mod camera_percept;
+mod percept;
+
+pub use bottle_fit::{BottleFitter, BottlePose};
+pub use camera_percept::{
+    BottleSighting, CameraPerception, CameraPerceptionError, PartSighting, Sighting, StationItem,
+    TargetRule, measure_in_window, part_window,
+};
+pub use percept::{PerceivedObstacle, Percept, bottle_obstacle, part_obstacle};
