@@ -70,8 +70,14 @@ records() {
     tr -cd '\n' <"$file" | wc -c
 }
 
-# Kill the node of the first running task that has written at least one record of its shard and
-# has at least two to go (so that the kill lands mid-shard, not after its last record).
+# Kill the node of the first running task that has written at least `kill_at` records of its
+# shard and has at least two to go (so that the kill lands mid-shard, not after its last
+# record). kill_at is drawn from 1 to 6 (a shard holds 8 or 9 trials) so that runs cut shards at
+# different places; NODE_LOSS_SEED repeats a run's draw.
+seed="${NODE_LOSS_SEED:-$(date +%s)}"
+RANDOM=$seed
+kill_at=$((1 + RANDOM % 6))
+say "killing a node once a task has $kill_at records (NODE_LOSS_SEED=$seed)"
 victim=""
 deadline=$((SECONDS + 120))
 while [ -z "$victim" ]; do
@@ -84,7 +90,7 @@ while [ -z "$victim" ]; do
         [ -n "$task" ] || continue
         shard_size=$(( (50 - task + SHARDS - 1) / SHARDS ))
         done_now=$(records "$work/results/shard-$task")
-        if [ "$done_now" -ge 1 ] && [ "$done_now" -le $((shard_size - 2)) ]; then
+        if [ "$done_now" -ge "$kill_at" ] && [ "$done_now" -le $((shard_size - 2)) ]; then
             victim=$node victim_task=$task
             nodes_at_kill=$(tr '\n' ' ' <<<"$running")
             # The node's every process: slurmd, slurmstepd, the batch shell's twincell.
@@ -102,7 +108,7 @@ left=$(ip netns pids "$victim" | tr '\n' ' ')
 shard_dir="$work/results/shard-$victim_task"
 kept=$(records "$shard_dir")
 head -n "$kept" "$shard_dir/trials.jsonl" >"$work/kept.jsonl"
-say "killed $victim ($(wc -w <<<"$pids") processes) while array task $victim_task had $kept of $shard_size records; running then (task node): $nodes_at_kill"
+say "killed $victim ($(wc -w <<<"$pids") processes) while array task $victim_task had $kept of its $shard_size records; running then (task node): $nodes_at_kill"
 
 # Wait for the array and the merge to leave the queue; the lost task first waits for slurmctld
 # to declare its node dead (SlurmdTimeout) and for its credential to expire.
@@ -137,7 +143,7 @@ cmp -s "$work/kept.jsonl" <(head -c "$(stat -c %s "$work/kept.jsonl")" "$shard_d
     || fail "shard $victim_task's records from before the kill were not kept: it did not resume"
 [ "$(field "$merge_id" JobState)" = COMPLETED ] \
     || fail "merge job is $(field "$merge_id" JobState); see $work/results/merge-$merge_id.out"
-say "task $victim_task: requeued $restarts time(s), resumed on $rerun_on keeping the $kept records the killed attempt wrote"
+say "task $victim_task: requeued $restarts time(s), resumed on $rerun_on keeping the $kept record(s) the killed attempt wrote"
 
 python3 scripts/same_records.py "$work/unsharded" "$work/results/merged" 50 >&2 \
     || fail "merged files differ from the unsharded run's"
