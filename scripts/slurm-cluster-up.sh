@@ -59,7 +59,11 @@ if [ "${1:-}" = --down ]; then
 fi
 
 source "$(dirname "$0")/slurm-common.sh"
-command -v ip >/dev/null 2>&1 || die "needs ip (iproute2) to make network namespaces"
+if ! command -v ip >/dev/null 2>&1; then
+    echo "$SLURM_SCRIPT: installing iproute2 (ip makes the network namespaces)" >&2
+    { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq \
+        --no-install-recommends iproute2 >/dev/null; } || die "apt-get install iproute2 failed"
+fi
 command -v unshare >/dev/null 2>&1 || die "needs unshare (util-linux) to give each node its host name"
 [ "$NODES" -ge 1 ] && [ "$NODES" -le 50 ] || die "NODES must be 1 to 50, got $NODES"
 

@@ -72,11 +72,12 @@ records() {
 
 # Kill the node of the first running task that has written at least `kill_at` records of its
 # shard and has at least two to go (so that the kill lands mid-shard, not after its last
-# record). kill_at is drawn from 1 to 6 (a shard holds 8 or 9 trials) so that runs cut shards at
-# different places; NODE_LOSS_SEED repeats a run's draw.
+# record). kill_at is drawn from 1 to 4 (a shard holds 8 or 9 trials, so every task leaves a
+# window of at least three records to be caught in) so that runs cut shards at different
+# places; NODE_LOSS_SEED repeats a run's draw.
 seed="${NODE_LOSS_SEED:-$(date +%s)}"
 RANDOM=$seed
-kill_at=$((1 + RANDOM % 6))
+kill_at=$((1 + RANDOM % 4))
 say "killing a node once a task has $kill_at records (NODE_LOSS_SEED=$seed)"
 victim=""
 deadline=$((SECONDS + 120))
