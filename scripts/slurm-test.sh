@@ -61,24 +61,6 @@ tasks_done=$(scontrol -o show job "$array_id" | grep -c 'JobState=COMPLETED' || 
 [ "$tasks_done" = 4 ] || fail "$tasks_done of 4 array tasks completed; see $work/results/shard-*.out"
 [ "$(job_state "$merge_id")" = COMPLETED ] || fail "merge job is $(job_state "$merge_id"); see $work/results/merge-$merge_id.out"
 
-python3 - "$work/unsharded" "$work/results/merged" <<'PY' || fail "merged files differ from the unsharded run's"
-import json, re, sys
-a, b = sys.argv[1], sys.argv[2]
-def trials(d):
-    text = open(f"{d}/trials.jsonl", "rb").read()
-    # Drop each line's "timing":{...} object; every other byte must match.
-    return re.sub(rb',"timing":\{[^}]*\}', b"", text)
-def report(d):
-    r = json.load(open(f"{d}/report.json"))
-    r.pop("timing")
-    return r
-ta, tb = trials(a), trials(b)
-n = ta.count(b"\n")
-assert n == 50, f"unsharded run has {n} trials"
-if ta != tb:
-    sys.exit(f"trials.jsonl differs ({len(ta)} vs {len(tb)} bytes)")
-if report(a) != report(b):
-    sys.exit("report.json differs (timing aside)")
-print("slurm-test: merged trials.jsonl (50 trials) and report.json equal the unsharded run's", file=sys.stderr)
-PY
+python3 scripts/same_records.py "$work/unsharded" "$work/results/merged" 50 >&2 \
+    || fail "merged files differ from the unsharded run's"
 echo "slurm-test: PASS in $((SECONDS - started)) s (results in $work)" >&2

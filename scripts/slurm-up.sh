@@ -11,40 +11,17 @@
 # it prints the daemon's log and exits 1.
 set -euo pipefail
 
-die() {
-    echo "slurm-up: $*" >&2
-    exit 1
-}
+SLURM_SCRIPT=slurm-up
+source "$(dirname "$0")/slurm-common.sh"
 
-[ "$(id -u)" = 0 ] || die "must run as root (it installs packages and starts munged, slurmctld and slurmd)"
-command -v apt-get >/dev/null 2>&1 || die "needs apt-get (Debian or Ubuntu) to install slurm-wlm and munge"
-
-if ! command -v slurmctld >/dev/null 2>&1 || ! command -v slurmd >/dev/null 2>&1 \
-    || ! command -v munged >/dev/null 2>&1 || ! command -v sbatch >/dev/null 2>&1; then
-    echo "slurm-up: installing slurm-wlm and munge" >&2
-    apt-get update -qq || die "apt-get update failed"
-    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends \
-        slurm-wlm munge >/dev/null || die "apt-get install slurm-wlm munge failed"
-fi
-
-# Stop daemons a previous run left, by the pids they recorded.
-for pidfile in /run/slurmctld.pid /run/slurmd.pid /run/munge/munged.pid; do
+# Stop the daemons a previous run left, by the pids they recorded.
+for pidfile in /run/slurmctld.pid /run/slurmd.pid; do
     if [ -s "$pidfile" ]; then
         kill "$(cat "$pidfile")" 2>/dev/null || true
     fi
 done
 sleep 1
-
-# munge: one key shared by every host of the cluster (here, one host).
-install -d -o munge -g munge -m 0700 /etc/munge /var/lib/munge /var/log/munge
-install -d -o munge -g munge -m 0755 /run/munge
-if [ ! -s /etc/munge/munge.key ]; then
-    dd if=/dev/urandom of=/etc/munge/munge.key bs=1024 count=1 status=none
-fi
-chown munge:munge /etc/munge/munge.key
-chmod 0400 /etc/munge/munge.key
-runuser -u munge -- /usr/sbin/munged || die "munged did not start: $(tail -n 20 /var/log/munge/munged.log 2>/dev/null)"
-munge -n | unmunge >/dev/null || die "munge cannot encode and decode a credential"
+munge_up
 
 host=$(hostname -s)
 cpus=$(nproc)
