@@ -10,11 +10,8 @@ const GRAVITY_M_S2: f64 = 9.81;
 /// held off its centre of mass also sees a turning moment in the jaws that the linear balance
 /// below leaves out. The slip monitor checks the result in every simulated carry.
 pub const GRIP_SAFETY_FACTOR: f64 = 3.0;
-/// Fastest TCP speed while carrying, m/s. The friction model lets a held part creep along the
-/// pads at a rate that grows steeply with the carry speed, well inside the grip's friction
-/// margin. Measured on paper_50 (oracle, largest drift in the jaws over 50 trials), the speed
-/// capped by the cruise rates: 1.0 m/s 7.6 mm (seed 5), 0.75 m/s 3.9 mm (seed 5) and 3.7 mm
-/// (seed 1); with the joints at their own limits 6.7 mm (seed 731).
+/// Fastest TCP speed while carrying, m/s: a held part's drift along the pads grows steeply with
+/// the carry speed, well inside the grip's friction margin (the measurements: docs/motion.md).
 const CARRY_SPEED_M_S: f64 = 0.75;
 
 /// A part held between two flat pads by friction alone.

@@ -161,11 +161,9 @@ impl Default for RobotSection {
                 std::f64::consts::FRAC_PI_2,
                 0.416_979,
             ],
-            // The simulated servos overshoot a velocity plateau by a few per cent (the trial
-            // record's measured joint_speed_ratio; more with the two solver substeps of a free
-            // arm, see `sim::FREE_SOLVER_ITERATIONS`), and a loaded wrist by up to 14 % when its
-            // acceleration steps at the start of a carry (seed 4, camera); at these fractions
-            // the measured speeds stay within the published limits on seeds 731 and 1-5.
+            // The simulated servos overshoot a velocity plateau by a few per cent, and a loaded
+            // wrist more when its acceleration steps at the start of a carry: at these fractions
+            // the measured speeds stay within the published limits (docs/motion.md).
             speed_fraction: 0.9,
             carry_speed_fraction: 0.85,
             urdf: None,

@@ -6,8 +6,7 @@
 //! solver's Coulomb friction has no such memory: in every substep it only cancels the sliding
 //! velocity that remains, so a held part under a steady load (its weight, the carry's
 //! acceleration) creeps along the pads by what each substep leaves over, and more, the fewer
-//! substeps a step has (with 4 substeps a carry crept up to 10.8 mm, with 8 up to 4.4 mm:
-//! paper_50, oracle, seed 731).
+//! substeps a step has (measured in docs/motion.md).
 //!
 //! Here each body a pad touches is anchored where the pad first held it. At each contact the
 //! pad's surface is given a tangent velocity (the same device that moves the belt) that carries
