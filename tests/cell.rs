@@ -22,7 +22,7 @@ fn shipped_scenarios_validate() {
     for name in ["paper_50.toml", "smoke.toml", "stream.toml"] {
         let scenario = Scenario::load(&scenario_path(name)).expect(name);
         assert!(scenario.part_types.len() >= 6);
-        assert!(scenario.reject_bin().is_some());
+        assert!(scenario.bins.iter().any(|b| b.reject));
     }
 }
 

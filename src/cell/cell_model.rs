@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 
 use super::layout::CellError;
 use crate::kinematics::{AnalyticIk, ArmModel, BUILTIN_URDF, BUILTIN_URDF_PATH, UrdfArm};
-use crate::scenario::Scenario;
+use crate::scenario::{Catalogue, Scenario};
 use crate::sim::SimError;
 
 /// A robot description: where it was read from (named in errors, anchoring mesh paths) and
@@ -23,6 +23,7 @@ pub struct UrdfSource {
 #[derive(Debug, Clone)]
 pub struct CellModel {
     scenario: Scenario,
+    catalogue: Catalogue,
     urdf: UrdfSource,
     arm: UrdfArm,
     ik: AnalyticIk,
@@ -71,6 +72,7 @@ impl CellModel {
             })
         })?;
         Ok(Self {
+            catalogue: Catalogue::of(&scenario),
             scenario,
             urdf,
             arm,
@@ -83,9 +85,18 @@ impl CellModel {
         &self.scenario
     }
 
-    /// The scenario, to change before trials run (experiments such as a too-weak gripper).
-    pub fn scenario_mut(&mut self) -> &mut Scenario {
-        &mut self.scenario
+    /// The scenario's part types and bins by id, in SI units.
+    pub fn catalogue(&self) -> &Catalogue {
+        &self.catalogue
+    }
+
+    /// Sets every part type's grip force (for experiments such as a too-weak gripper).
+    pub fn set_grip_force_n(&mut self, force_n: f64) {
+        self.scenario.gripper.grip_force_n = force_n;
+        for part in &mut self.scenario.part_types {
+            part.grip_force_n = None;
+        }
+        self.catalogue = Catalogue::of(&self.scenario);
     }
 
     /// The robot's description.

@@ -78,7 +78,7 @@ fn payload() -> Payload {
 
 fn percept(xy: [f64; 2], obstacles: Vec<PerceivedObstacle>) -> Percept {
     Percept {
-        part_type: "axle_b28".into(),
+        part_type: crate::scenario::PartTypeId(2),
         part_xy: xy,
         part_outer_radius_m: 0.02,
         part_height_m: 0.05,

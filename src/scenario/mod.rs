@@ -3,6 +3,7 @@
 //! Every field is validated on load; an error names the file, the key and the reason.
 
 mod camera_sections;
+mod catalogue;
 mod extends;
 mod overrides;
 mod robot_arm;
@@ -15,6 +16,7 @@ use serde::{Deserialize, Serialize};
 pub use camera_sections::{
     CameraSection, DEFAULT_CAMERA_HEIGHT_ABOVE_BELT_M, LightSpec, LightingSection, SensorSection,
 };
+pub use catalogue::{BinId, Catalogue, PartKind, PartTypeId, STEEL_DENSITY_KG_M3};
 pub use extends::EXTENDS_KEY;
 pub use overrides::{
     Override, OverrideSyntaxError, SweepAxis, parse_value, split_values, sweep_grid,
@@ -270,7 +272,7 @@ pub struct PartType {
 }
 
 fn steel() -> f64 {
-    7850.0
+    STEEL_DENSITY_KG_M3
 }
 
 /// How part instances are drawn.
@@ -436,27 +438,6 @@ impl Scenario {
     pub fn source_files(path: &Path) -> Result<Vec<(PathBuf, String)>, ScenarioError> {
         let text = read(path)?;
         Ok(ScenarioDocument::resolve(&text, path)?.sources)
-    }
-
-    /// The bin a part of type `part_type` goes to when accepted.
-    pub fn accept_bin(&self, part_type: &str) -> Option<&Bin> {
-        self.bins
-            .iter()
-            .find(|b| !b.reject && b.accepts.iter().any(|t| t == part_type))
-    }
-
-    /// Grip force per jaw for a part type, N.
-    pub fn grip_force_for(&self, part_type: &str) -> f64 {
-        self.part_types
-            .iter()
-            .find(|p| p.name == part_type)
-            .and_then(|p| p.grip_force_n)
-            .unwrap_or(self.gripper.grip_force_n)
-    }
-
-    /// The reject bin.
-    pub fn reject_bin(&self) -> Option<&Bin> {
-        self.bins.iter().find(|b| b.reject)
     }
 }
 

@@ -1,6 +1,7 @@
 use std::path::{Path, PathBuf};
 
 use super::*;
+use crate::scenario::{Catalogue, PartTypeId};
 
 fn smoke_path() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/smoke.toml")
@@ -80,11 +81,11 @@ fn sections_keys_and_array_entries_are_overridden() {
     assert_eq!(s.bottle.distance_range_m, [0.07, 0.08]);
     assert_eq!(s.conveyor.speed_m_s, 0.5);
     assert_eq!(s.conveyor.width_m, base.conveyor.width_m);
-    assert_eq!(s.grip_force_for("axle_a20"), 40.0);
-    assert_eq!(s.grip_force_for("axle_a24"), 45.5);
+    assert_eq!(Catalogue::of(&s).part(PartTypeId(0)).grip_force_n, 40.0);
+    assert_eq!(Catalogue::of(&s).part(PartTypeId(1)).grip_force_n, 45.5);
     assert_eq!(
-        s.grip_force_for("axle_c44"),
-        base.grip_force_for("axle_c44")
+        Catalogue::of(&s).part(PartTypeId(5)).grip_force_n,
+        Catalogue::of(&base).part(PartTypeId(5)).grip_force_n
     );
     assert_eq!(s.bins[0].size_m, [0.25, 0.22]);
     assert_eq!(s.seed, 99);

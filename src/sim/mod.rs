@@ -19,6 +19,6 @@ pub use conveyor::{BELT_ACCEL_M_S2, ConveyorHooks};
 pub use error::SimError;
 pub use items::{BottleItem, BottlePlacement, ItemSet, PartItem, body_pose};
 pub use pad_stiction::{CellHooks, PRESLIDE_RATE_HZ, PadStiction};
-pub use part::{BoreForm, PartInstance, tube_mass_kg};
+pub use part::{BoreForm, PartInstance};
 pub use tag::{Tag, groups};
 pub use world::{CONTACT_MARGIN_M, FREE_SOLVER_ITERATIONS, World, WorldParams};

@@ -3,7 +3,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::rng::SimRng;
-use crate::scenario::{PartType, Scenario};
+use crate::scenario::{Catalogue, PartTypeId, Scenario};
 
 /// The true shape of a bore's edge: `r(theta)` about the bore's centre.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -87,21 +87,14 @@ pub struct PartInstance {
     pub bore: BoreForm,
 }
 
-/// The mass of a part type's nominal tube (its bore at the nominal diameter), kg.
-pub fn tube_mass_kg(part: &PartType) -> f64 {
-    let outer_radius_m = part.outer_diameter_mm / 2000.0;
-    let bore_radius_m = part.bore_diameter_mm / 2000.0;
-    let area = std::f64::consts::PI * (outer_radius_m.powi(2) - bore_radius_m.powi(2));
-    area * (part.height_mm / 1000.0) * part.density_kg_m3
-}
-
 impl PartInstance {
     /// Draws a part: uniform type, uniform true roundness in [0, max], a random form.
     pub fn draw(scenario: &Scenario, rng: &mut SimRng) -> Self {
         let type_index = rng.below(scenario.part_types.len() as u64) as usize;
-        let part: &PartType = &scenario.part_types[type_index];
+        let catalogue = Catalogue::of(scenario);
+        let part = catalogue.part(PartTypeId(type_index));
         let roundness_m = rng.range(0.0, scenario.parts.max_roundness_mm) / 1000.0;
-        let nominal_radius_m = part.bore_diameter_mm / 2000.0;
+        let nominal_radius_m = part.bore_radius_m();
         let bore = match rng.below(3) {
             0 => BoreForm::Ellipse {
                 a_m: nominal_radius_m + roundness_m / 2.0,
@@ -115,14 +108,12 @@ impl PartInstance {
                 phase_rad: rng.range(0.0, std::f64::consts::TAU),
             },
         };
-        let outer_radius_m = part.outer_diameter_mm / 2000.0;
-        let height_m = part.height_mm / 1000.0;
         Self {
             type_index,
             type_name: part.name.clone(),
-            outer_radius_m,
-            height_m,
-            mass_kg: tube_mass_kg(part),
+            outer_radius_m: part.outer_radius_m(),
+            height_m: part.height_m,
+            mass_kg: part.mass_kg(),
             bore,
         }
     }

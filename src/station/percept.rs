@@ -4,13 +4,13 @@
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion};
 use rapier3d::geometry::SharedShape;
 
-use crate::scenario::BottleSection;
+use crate::scenario::{BottleSection, PartTypeId};
 
 /// What perception reports about the pick station, from the camera or from the oracle.
 #[derive(Debug, Clone)]
 pub struct Percept {
-    /// The part's type name, as detected.
-    pub part_type: String,
+    /// The part's type, as detected.
+    pub part_type: PartTypeId,
     /// Part's centre on the belt (x, y), world, m.
     pub part_xy: [f64; 2],
     /// The detected type's outer radius, m.

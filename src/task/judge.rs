@@ -2,55 +2,56 @@
 //! reached is right (with the metrology's uncertainty zone), and what the bottles say.
 
 use crate::outcome::{Failure, FailureReason, PartRecord, Phase};
-use crate::scenario::Scenario;
+use crate::scenario::{BinId, Catalogue, PartTypeId, Scenario};
 use crate::sim::PartInstance;
 
-/// The bin a part of `part_type` goes to when accepted or rejected (empty when the scenario has
-/// none).
-pub fn bin_for(scenario: &Scenario, part_type: &str, accept: bool) -> String {
-    let bin = if accept {
-        scenario.accept_bin(part_type)
-    } else {
-        scenario.reject_bin()
-    };
-    bin.map(|b| b.name.clone()).unwrap_or_default()
+/// The name of `bin` for records (empty when there is none).
+pub fn bin_name(catalogue: &Catalogue, bin: Option<BinId>) -> String {
+    bin.map(|b| catalogue.bin_name(b).to_owned())
+        .unwrap_or_default()
 }
 
 /// The truth about `part`: its true roundness and diameter, whether it conforms, whether it is
 /// clear of the uncertainty zone, and the bin the truth calls for.
-pub fn part_record(scenario: &Scenario, part: &PartInstance) -> PartRecord {
+pub fn part_record(scenario: &Scenario, catalogue: &Catalogue, part: &PartInstance) -> PartRecord {
     let true_roundness_mm = part.bore.roundness_m() * 1000.0;
     let truly_acceptable = true_roundness_mm <= scenario.roundness_tolerance_mm;
     let clear_cut = (true_roundness_mm - scenario.roundness_tolerance_mm).abs()
         > scenario.roundness_uncertainty_mm;
+    let correct = catalogue.bin_for(PartTypeId(part.type_index), truly_acceptable);
     PartRecord {
         part_type: part.type_name.clone(),
         true_roundness_mm,
         true_bore_diameter_mm: part.bore.mean_diameter_m() * 1000.0,
         truly_acceptable,
         clear_cut,
-        correct_bin: bin_for(scenario, &part.type_name, truly_acceptable),
+        correct_bin: bin_name(catalogue, correct),
     }
 }
 
-/// Whether `placed_bin` is right for `part`: the bin its true roundness calls for or, for a
-/// part inside the uncertainty zone (not clear-cut), either its type's accept bin or the reject
-/// bin.
-pub fn bin_is_right(scenario: &Scenario, part: &PartRecord, placed_bin: Option<&str>) -> bool {
-    let Some(placed) = placed_bin else {
+/// Whether `placed` is right for a part of type `part_type` judged `truth`: the bin its true
+/// roundness calls for or, for a part inside the uncertainty zone (not clear-cut), either its
+/// type's accept bin or the reject bin.
+pub fn bin_is_right(
+    catalogue: &Catalogue,
+    part_type: PartTypeId,
+    truth: &PartRecord,
+    placed: Option<BinId>,
+) -> bool {
+    let Some(placed) = placed else {
         return false;
     };
-    placed == part.correct_bin
-        || (!part.clear_cut
-            && (placed == bin_for(scenario, &part.part_type, true)
-                || placed == bin_for(scenario, &part.part_type, false)))
+    let bin_for = |accept| catalogue.bin_for(part_type, accept) == Some(placed);
+    bin_for(truth.truly_acceptable) || (!truth.clear_cut && (bin_for(true) || bin_for(false)))
 }
 
 /// What was seen of the bottles and the part at the end of a pick cycle.
 #[derive(Debug, Clone, PartialEq)]
-pub struct CycleEvidence<'a> {
+pub struct CycleEvidence {
+    /// The part's type.
+    pub part_type: PartTypeId,
     /// The bin the part rests in, if any.
-    pub placed_bin: Option<&'a str>,
+    pub placed_bin: Option<BinId>,
     /// Whether a bottle was lifted.
     pub bottle_lifted: bool,
     /// Whether the robot touched a bottle, and in which phase it first did.
@@ -59,7 +60,7 @@ pub struct CycleEvidence<'a> {
     pub bottle_displacement_m: f64,
 }
 
-impl CycleEvidence<'_> {
+impl CycleEvidence {
     /// Whether the bottles count as disturbed: touched by the robot, or moved beyond the
     /// scenario's tolerance.
     pub fn bottle_disturbed(&self, scenario: &Scenario) -> bool {
@@ -71,9 +72,10 @@ impl CycleEvidence<'_> {
 /// lifted bottle, a disturbed one, and last the wrong bin.
 pub fn judge_cycle(
     scenario: &Scenario,
+    catalogue: &Catalogue,
     part: &PartRecord,
     controller: Result<(), Failure>,
-    evidence: &CycleEvidence<'_>,
+    evidence: &CycleEvidence,
 ) -> Option<Failure> {
     if let Err(failure) = controller {
         return Some(failure);
@@ -94,14 +96,13 @@ pub fn judge_cycle(
         };
         return Some(Failure::new(FailureReason::DistractorTouched, detail));
     }
-    if !bin_is_right(scenario, part, evidence.placed_bin) {
+    if !bin_is_right(catalogue, evidence.part_type, part, evidence.placed_bin) {
+        let placed = evidence
+            .placed_bin
+            .map_or("no bin", |b| catalogue.bin_name(b));
         return Some(Failure::new(
             FailureReason::WrongBin,
-            format!(
-                "part in {}, belongs in {}",
-                evidence.placed_bin.unwrap_or("no bin"),
-                part.correct_bin
-            ),
+            format!("part in {placed}, belongs in {}", part.correct_bin),
         ));
     }
     None
@@ -121,10 +122,20 @@ mod tests {
         scenario
     }
 
+    /// The bin named `name` in paper_50.
+    fn bin(name: &str) -> Option<BinId> {
+        let scenario = paper(0.05);
+        scenario.bins.iter().position(|b| b.name == name).map(BinId)
+    }
+
     /// A part of `type_name` whose bore is an ellipse out of round by `roundness_mm`.
     fn part(type_name: &str, roundness_mm: f64) -> PartInstance {
+        let scenario = paper(0.05);
+        let Some(type_index) = scenario.part_types.iter().position(|t| t.name == type_name) else {
+            panic!("no type {type_name}");
+        };
         PartInstance {
-            type_index: 0,
+            type_index,
             type_name: type_name.into(),
             outer_radius_m: 0.015,
             height_m: 0.05,
@@ -137,9 +148,10 @@ mod tests {
         }
     }
 
-    fn clean(placed_bin: Option<&str>) -> CycleEvidence<'_> {
+    fn clean(part: &PartInstance, placed_bin: Option<&str>) -> CycleEvidence {
         CycleEvidence {
-            placed_bin,
+            part_type: PartTypeId(part.type_index),
+            placed_bin: placed_bin.and_then(bin),
             bottle_lifted: false,
             touch_phase: None,
             bottle_displacement_m: 0.0,
@@ -149,11 +161,12 @@ mod tests {
     #[test]
     fn the_truth_names_the_accept_or_reject_bin() {
         let scenario = paper(0.05);
-        let good = part_record(&scenario, &part("axle_b28", 0.2));
+        let catalogue = Catalogue::of(&scenario);
+        let good = part_record(&scenario, &catalogue, &part("axle_b28", 0.2));
         assert!(good.truly_acceptable && good.clear_cut);
         assert_eq!(good.correct_bin, "group_b");
         assert!((good.true_roundness_mm - 0.2).abs() < 1e-9);
-        let bad = part_record(&scenario, &part("axle_c44", 0.8));
+        let bad = part_record(&scenario, &catalogue, &part("axle_c44", 0.8));
         assert!(!bad.truly_acceptable && bad.clear_cut);
         assert_eq!(bad.correct_bin, "reject");
     }
@@ -161,19 +174,24 @@ mod tests {
     #[test]
     fn a_clear_cut_part_must_reach_its_own_bin() {
         let scenario = paper(0.05);
-        let good = part_record(&scenario, &part("axle_a20", 0.3));
-        assert!(bin_is_right(&scenario, &good, Some("group_a")));
-        assert!(!bin_is_right(&scenario, &good, Some("reject")));
-        assert!(!bin_is_right(&scenario, &good, Some("group_b")));
-        assert!(!bin_is_right(&scenario, &good, None));
-        let failure = judge_cycle(&scenario, &good, Ok(()), &clean(Some("reject")));
+        let catalogue = Catalogue::of(&scenario);
+        let a20 = part("axle_a20", 0.3);
+        let id = PartTypeId(a20.type_index);
+        let good = part_record(&scenario, &catalogue, &a20);
+        assert!(bin_is_right(&catalogue, id, &good, bin("group_a")));
+        assert!(!bin_is_right(&catalogue, id, &good, bin("reject")));
+        assert!(!bin_is_right(&catalogue, id, &good, bin("group_b")));
+        assert!(!bin_is_right(&catalogue, id, &good, None));
+        let in_reject = clean(&a20, Some("reject"));
+        let failure = judge_cycle(&scenario, &catalogue, &good, Ok(()), &in_reject);
         let Some(failure) = failure else {
             panic!("a conforming part in the reject bin passed");
         };
         assert_eq!(failure.reason, FailureReason::WrongBin);
         assert_eq!(failure.detail, "part in reject, belongs in group_a");
+        let in_own = clean(&a20, Some("group_a"));
         assert_eq!(
-            judge_cycle(&scenario, &good, Ok(()), &clean(Some("group_a"))),
+            judge_cycle(&scenario, &catalogue, &good, Ok(()), &in_own),
             None
         );
     }
@@ -181,40 +199,50 @@ mod tests {
     #[test]
     fn inside_the_uncertainty_band_either_verdict_is_right() {
         let scenario = paper(0.05);
+        let catalogue = Catalogue::of(&scenario);
         // 0.47 and 0.53 mm lie within 0.05 mm of the 0.5 mm tolerance.
         for roundness_mm in [0.47, 0.53] {
-            let record = part_record(&scenario, &part("axle_b32", roundness_mm));
+            let b32 = part("axle_b32", roundness_mm);
+            let id = PartTypeId(b32.type_index);
+            let record = part_record(&scenario, &catalogue, &b32);
             assert!(!record.clear_cut, "{roundness_mm}");
-            assert!(bin_is_right(&scenario, &record, Some("group_b")));
-            assert!(bin_is_right(&scenario, &record, Some("reject")));
+            assert!(bin_is_right(&catalogue, id, &record, bin("group_b")));
+            assert!(bin_is_right(&catalogue, id, &record, bin("reject")));
             // Another type's accept bin is never right.
-            assert!(!bin_is_right(&scenario, &record, Some("group_a")));
+            assert!(!bin_is_right(&catalogue, id, &record, bin("group_a")));
         }
         // The band is the scenario's: with a narrower one the same part is clear-cut.
         let narrow = paper(0.02);
-        let record = part_record(&narrow, &part("axle_b32", 0.47));
+        let b32 = part("axle_b32", 0.47);
+        let record = part_record(&narrow, &catalogue, &b32);
         assert!(record.clear_cut && record.truly_acceptable);
-        assert!(!bin_is_right(&narrow, &record, Some("reject")));
+        let id = PartTypeId(b32.type_index);
+        assert!(!bin_is_right(&catalogue, id, &record, bin("reject")));
     }
 
     #[test]
     fn bottles_are_judged_before_the_bin() {
         let scenario = paper(0.05);
-        let record = part_record(&scenario, &part("axle_a24", 0.1));
+        let catalogue = Catalogue::of(&scenario);
+        let a24 = part("axle_a24", 0.1);
+        let record = part_record(&scenario, &catalogue, &a24);
+        let judge = |evidence: &CycleEvidence| {
+            judge_cycle(&scenario, &catalogue, &record, Ok(()), evidence)
+        };
         let lifted = CycleEvidence {
             bottle_lifted: true,
-            ..clean(Some("group_a"))
+            ..clean(&a24, Some("group_a"))
         };
-        let Some(failure) = judge_cycle(&scenario, &record, Ok(()), &lifted) else {
+        let Some(failure) = judge(&lifted) else {
             panic!("a lifted bottle passed");
         };
         assert_eq!(failure.reason, FailureReason::DistractorPicked);
         let touched = CycleEvidence {
             touch_phase: Some(Phase::Descend),
             bottle_displacement_m: 0.0002,
-            ..clean(Some("group_a"))
+            ..clean(&a24, Some("group_a"))
         };
-        let Some(failure) = judge_cycle(&scenario, &record, Ok(()), &touched) else {
+        let Some(failure) = judge(&touched) else {
             panic!("a touched bottle passed");
         };
         assert_eq!(failure.reason, FailureReason::DistractorTouched);
@@ -226,31 +254,34 @@ mod tests {
         // Pushed past the tolerance without a recorded touch (by the part, say).
         let pushed = CycleEvidence {
             bottle_displacement_m: scenario.task.bottle_tolerance_m + 0.001,
-            ..clean(Some("group_a"))
+            ..clean(&a24, Some("group_a"))
         };
         assert!(pushed.bottle_disturbed(&scenario));
-        let Some(failure) = judge_cycle(&scenario, &record, Ok(()), &pushed) else {
+        let Some(failure) = judge(&pushed) else {
             panic!("a pushed bottle passed");
         };
         assert_eq!(failure.reason, FailureReason::DistractorTouched);
         // Moved within the tolerance: not disturbed.
         let nudged = CycleEvidence {
             bottle_displacement_m: scenario.task.bottle_tolerance_m / 2.0,
-            ..clean(Some("group_a"))
+            ..clean(&a24, Some("group_a"))
         };
-        assert_eq!(judge_cycle(&scenario, &record, Ok(()), &nudged), None);
+        assert_eq!(judge(&nudged), None);
     }
 
     #[test]
     fn the_controllers_own_failure_comes_first() {
         let scenario = paper(0.05);
-        let record = part_record(&scenario, &part("axle_a24", 0.1));
+        let catalogue = Catalogue::of(&scenario);
+        let a24 = part("axle_a24", 0.1);
+        let record = part_record(&scenario, &catalogue, &a24);
         let slipped = Failure::new(FailureReason::Slipped, "part slid");
         let lifted = CycleEvidence {
             bottle_lifted: true,
-            ..clean(None)
+            ..clean(&a24, None)
         };
-        let Some(failure) = judge_cycle(&scenario, &record, Err(slipped), &lifted) else {
+        let failure = judge_cycle(&scenario, &catalogue, &record, Err(slipped), &lifted);
+        let Some(failure) = failure else {
             panic!("a failed cycle passed");
         };
         assert_eq!(failure.reason, FailureReason::Slipped);

@@ -8,7 +8,7 @@ use super::trial::Trial;
 use crate::outcome::{Failure, FailureReason, PartRecord, fail};
 use crate::render::Scene;
 use crate::rng::SimRng;
-use crate::scenario::PartType;
+use crate::scenario::{Catalogue, PartTypeId};
 use crate::station::{
     CameraPerception, Percept, Sighting, StationItem, TargetRule, bottle_obstacle, part_obstacle,
 };
@@ -65,9 +65,9 @@ impl Trial<'_> {
         self.timing.detect_ms += sighting.detect_ms;
         self.timing.metrology_ms += sighting.metrology_ms;
         let truth = self.part_record();
-        let part_types = &self.scenario.part_types;
+        let catalogue = self.catalogue;
         self.observer()
-            .perception(|| perception_frame(&sighting, &truth, part_types));
+            .perception(|| perception_frame(&sighting, &truth, catalogue));
         Ok(sighting)
     }
 
@@ -83,8 +83,9 @@ impl Trial<'_> {
                 ),
             );
         };
-        let part_type = &self.scenario.part_types[target.type_index];
-        let part_height_m = part_type.height_mm / 1000.0;
+        let part_type = PartTypeId(target.type_index);
+        let kind = self.catalogue.part(part_type);
+        let part_height_m = kind.height_m;
         let centre = target.centre_in_world;
         let near = |x: f64, y: f64| (x - centre.x).hypot(y - centre.y) < NEIGHBOURHOOD_M;
         let mut obstacles = Vec::new();
@@ -104,11 +105,11 @@ impl Trial<'_> {
         for other in &sighting.other_parts {
             let p = other.centre_in_world;
             if near(p.x, p.y) {
-                let other_type = &self.scenario.part_types[other.type_index];
-                let height_m = other_type.height_mm / 1000.0;
+                let other_type = self.catalogue.part(PartTypeId(other.type_index));
+                let height_m = other_type.height_m;
                 obstacles.push(part_obstacle(
                     &Point3::new(p.x, p.y, self.cell.belt_top_z + height_m / 2.0),
-                    other_type.outer_diameter_mm / 2000.0,
+                    other_type.outer_radius_m(),
                     height_m,
                 ));
             }
@@ -118,9 +119,9 @@ impl Trial<'_> {
             None => (None, None),
         };
         Ok(Percept {
-            part_type: part_type.name.clone(),
+            part_type,
             part_xy: [centre.x, centre.y],
-            part_outer_radius_m: part_type.outer_diameter_mm / 2000.0,
+            part_outer_radius_m: kind.outer_radius_m(),
             part_height_m,
             roundness_mm,
             bore_diameter_mm,
@@ -164,7 +165,7 @@ impl Trial<'_> {
         }
         let part = &handled.instance;
         Ok(Percept {
-            part_type: part.type_name.clone(),
+            part_type: PartTypeId(part.type_index),
             part_xy: [part_pose.translation.x, part_pose.translation.y],
             part_outer_radius_m: part.outer_radius_m,
             part_height_m: part.height_m,
@@ -181,7 +182,7 @@ impl Trial<'_> {
 fn perception_frame(
     sighting: &Sighting,
     truth: &PartRecord,
-    part_types: &[PartType],
+    catalogue: &Catalogue,
 ) -> PerceptionFrame {
     let detections = sighting
         .detections
@@ -210,7 +211,7 @@ fn perception_frame(
         StationItem::Bottle(_) => "bottle".to_owned(),
         StationItem::Part => sighting.target.as_ref().map_or_else(
             || "a part".to_owned(),
-            |t| part_types[t.type_index].name.clone(),
+            |t| catalogue.part(PartTypeId(t.type_index)).name.clone(),
         ),
     });
     PerceptionFrame {

@@ -8,7 +8,8 @@ use super::trial::Trial;
 use crate::control::HoldMonitor;
 use crate::outcome::{DecisionRecord, Failure, FailureReason, PartRecord, Phase, fail};
 use crate::planning::{JointTrajectory, Payload, PickPlan, PlacePlan};
-use crate::sim::{JAW_SPEED_M_S, tube_mass_kg};
+use crate::scenario::{BinId, PartTypeId};
+use crate::sim::JAW_SPEED_M_S;
 use crate::station::{Percept, Sighting};
 
 /// Time for the grip force to build once the drive reaches its end, s.
@@ -26,6 +27,7 @@ pub(crate) struct Cycle {
     pub(crate) part: PartRecord,
     pub(crate) decision: Option<DecisionRecord>,
     pub(crate) placed_bin: Option<String>,
+    pub(crate) placed_bin_id: Option<BinId>,
     pub(crate) failure: Option<Failure>,
     pub(crate) touched: bool,
     pub(crate) picked: bool,
@@ -37,7 +39,7 @@ pub(crate) struct Cycle {
 #[derive(Default)]
 struct CycleState {
     percept: Option<Percept>,
-    bin: String,
+    bin: Option<BinId>,
     pick: Option<PickPlan>,
     place: Option<PlacePlan>,
     hold: Option<HoldMonitor>,
@@ -47,7 +49,7 @@ impl Trial<'_> {
     /// The truth about the part being handled.
     pub(crate) fn part_record(&self) -> PartRecord {
         let part = &self.cell.items.parts()[self.current].instance;
-        judge::part_record(self.scenario, part)
+        judge::part_record(self.scenario, self.catalogue, part)
     }
 
     /// A part that never reached the pick station.
@@ -56,6 +58,7 @@ impl Trial<'_> {
             part: self.part_record(),
             decision: None,
             placed_bin: None,
+            placed_bin_id: None,
             failure: Some(failure),
             touched: false,
             picked: false,
@@ -71,20 +74,22 @@ impl Trial<'_> {
         let part = self.part_record();
         let mut decision = None;
         let result = self.run_cycle(seen, &mut decision);
-        let placed_bin = self.bin_holding_part();
+        let placed_bin_id = self.bin_holding_part();
         let evidence = CycleEvidence {
-            placed_bin: placed_bin.as_deref(),
+            part_type: PartTypeId(self.cell.items.parts()[self.current].instance.type_index),
+            placed_bin: placed_bin_id,
             bottle_lifted: self.bottle_lifted(),
             touch_phase: self.touch_phase,
             bottle_displacement_m: self.bottle_displacement_m(),
         };
-        let failure = judge::judge_cycle(self.scenario, &part, result, &evidence);
+        let failure = judge::judge_cycle(self.scenario, self.catalogue, &part, result, &evidence);
         let touched = evidence.bottle_disturbed(self.scenario);
         let (picked, displacement_m) = (evidence.bottle_lifted, evidence.bottle_displacement_m);
         Cycle {
             part,
             decision,
-            placed_bin,
+            placed_bin: placed_bin_id.map(|b| self.catalogue.bin_name(b).to_owned()),
+            placed_bin_id,
             failure,
             touched,
             picked,
@@ -112,7 +117,7 @@ impl Trial<'_> {
                     let percept = self.perceive(seen.take())?;
                     let (recorded, bin) = self.decide(&percept);
                     *decision = Some(recorded);
-                    self.grip_recipe_n = self.scenario.grip_force_for(&percept.part_type);
+                    self.grip_recipe_n = self.catalogue.part(percept.part_type).grip_force_n;
                     state.bin = bin;
                     state.percept = Some(percept);
                 }
@@ -208,24 +213,8 @@ impl Trial<'_> {
     /// What the jaws will hold: the detected type's tube, the grip force chosen for it and the
     /// pads' friction.
     fn payload(&self, percept: &Percept) -> Payload {
-        let mass_kg = self
-            .scenario
-            .part_types
-            .iter()
-            .find(|t| t.name == percept.part_type)
-            .map_or_else(
-                // A type the table lacks: a solid steel cylinder of the percept's size, the
-                // heaviest it could be.
-                || {
-                    std::f64::consts::PI
-                        * percept.part_outer_radius_m.powi(2)
-                        * percept.part_height_m
-                        * 7850.0
-                },
-                tube_mass_kg,
-            );
         Payload {
-            mass_kg,
+            mass_kg: self.catalogue.part(percept.part_type).mass_kg(),
             grip_force_n: self.grip_recipe_n,
             pad_friction: self.scenario.gripper.pad_friction,
         }
@@ -233,18 +222,18 @@ impl Trial<'_> {
 
     /// The sorting rule: accept only a part whose bore was measured within tolerance and whose
     /// measurement agrees with the detected type. Returns the decision and its bin.
-    fn decide(&self, percept: &Percept) -> (DecisionRecord, String) {
+    fn decide(&self, percept: &Percept) -> (DecisionRecord, Option<BinId>) {
         let accept = percept.inconsistency.is_none()
             && percept
                 .roundness_mm
                 .is_some_and(|r| r <= self.scenario.roundness_tolerance_mm);
-        let bin = judge::bin_for(self.scenario, &percept.part_type, accept);
+        let bin = self.catalogue.bin_for(percept.part_type, accept);
         let decision = DecisionRecord {
-            detected_type: percept.part_type.clone(),
+            detected_type: self.catalogue.part(percept.part_type).name.clone(),
             measured_roundness_mm: percept.roundness_mm,
             measured_bore_diameter_mm: percept.bore_diameter_mm,
             accept,
-            bin: bin.clone(),
+            bin: judge::bin_name(self.catalogue, bin),
             note: percept.inconsistency.clone(),
         };
         (decision, bin)
@@ -257,13 +246,11 @@ impl Trial<'_> {
         };
         let checker = self.planner.checker_for(percept);
         let pick = self.planner.plan_pick(percept, &checker, &self.q)?;
-        let Some(bin) = self.cell.bins.iter().find(|b| b.name == state.bin) else {
-            return fail(
-                FailureReason::WrongBin,
-                format!("no bin named {}", state.bin),
-            );
+        let Some(bin_id) = state.bin else {
+            return fail(FailureReason::WrongBin, "no bin named ");
         };
-        let placed_before = self.bin_fill.get(&bin.name).copied().unwrap_or(0);
+        let bin = &self.cell.bins[bin_id.0];
+        let placed_before = self.bin_fill[bin_id.0];
         let payload = self.payload(percept);
         let place =
             self.planner

@@ -85,11 +85,7 @@ impl CellTrialRunner {
 
     /// Overrides every part type's grip force (for experiments such as a too-weak gripper).
     pub fn set_grip_force_n(&mut self, force_n: f64) {
-        let scenario = self.model.scenario_mut();
-        scenario.gripper.grip_force_n = force_n;
-        for part in &mut scenario.part_types {
-            part.grip_force_n = None;
-        }
+        self.model.set_grip_force_n(force_n);
     }
 }
 

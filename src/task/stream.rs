@@ -10,6 +10,7 @@ use super::trial::Trial;
 use crate::outcome::{
     Failure, FailureReason, Misidentification, Outcome, StreamPartRecord, StreamRecord, TrialRecord,
 };
+use crate::scenario::PartTypeId;
 use crate::station::{Sighting, StationItem, TargetRule};
 
 /// Spacing of the points along the photo-eye's beam that the camera checks, m.
@@ -111,7 +112,7 @@ impl Trial<'_> {
             (Some(StationItem::Part), Some(_)) => Ok(AtEye::Part(Some(Box::new(sighting)))),
             (Some(StationItem::Part), None) => {
                 let identified = sighting.target.as_ref().map_or("a part", |t| {
-                    self.scenario.part_types[t.type_index].name.as_str()
+                    self.catalogue.part(PartTypeId(t.type_index)).name.as_str()
                 });
                 self.misidentified = Some(Misidentification {
                     truth: "bottle".to_owned(),
@@ -164,8 +165,8 @@ impl Trial<'_> {
                     touched |= cycle.touched;
                     picked |= cycle.picked;
                     displacement_m = displacement_m.max(cycle.displacement_m);
-                    if let Some(bin) = &cycle.placed_bin {
-                        *self.bin_fill.entry(bin.clone()).or_insert(0) += 1;
+                    if let Some(bin) = cycle.placed_bin_id {
+                        self.bin_fill[bin.0] += 1;
                     }
                     let failed = cycle.failure.is_some();
                     parts.push(stream_part(count_u32(parts.len()), cycle));

@@ -2,7 +2,6 @@
 //! drives, the feeder, the physics step, the observer, and the monitors (time-out, blow-up,
 //! robot-bottle contact).
 
-use std::collections::BTreeMap;
 use std::time::Instant;
 
 use nalgebra::Isometry3;
@@ -19,7 +18,7 @@ use crate::outcome::{
 };
 use crate::planning::{JointTrajectory, PickPlanner, capture_robot_shapes, scenery_obstacles};
 use crate::rng::SimRng;
-use crate::scenario::Scenario;
+use crate::scenario::{BinId, Catalogue, Scenario};
 use crate::sim::Tag;
 use crate::station::CameraPerception;
 
@@ -29,6 +28,8 @@ const TOUCH_DISTANCE_M: f64 = 0.0005;
 /// A trial in progress: the cell, the drives, the monitors, and where the task has got to.
 pub(crate) struct Trial<'a> {
     pub(crate) scenario: &'a Scenario,
+    /// The scenario's part types and bins by id.
+    pub(crate) catalogue: &'a Catalogue,
     /// The camera pipeline; `None` reads the truth from the world (the oracle).
     pub(crate) camera: Option<&'a CameraPerception>,
     /// The trial's seed, and the camera shots taken so far (each draws its own realism).
@@ -45,8 +46,8 @@ pub(crate) struct Trial<'a> {
     /// index in the cell's registry.
     pub(crate) bottle_rest: Vec<Option<Isometry3<f64>>>,
     pub(crate) feeder: Feeder,
-    /// Parts placed so far per bin (a stream fills its bins slot by slot).
-    pub(crate) bin_fill: BTreeMap<String, usize>,
+    /// Parts placed so far per bin, by id (a stream fills its bins slot by slot).
+    pub(crate) bin_fill: Vec<usize>,
     /// The phase in which the robot first touched a bottle in this cycle.
     pub(crate) touch_phase: Option<Phase>,
     pub(crate) phase: Phase,
@@ -101,6 +102,7 @@ impl<'a> Trial<'a> {
         let bottle_rest = vec![None; cell.items.bottles().len()];
         Self {
             scenario,
+            catalogue: cell_model.catalogue(),
             camera,
             seed,
             shots: 0,
@@ -111,7 +113,7 @@ impl<'a> Trial<'a> {
             current: 0,
             bottle_rest,
             feeder,
-            bin_fill: BTreeMap::new(),
+            bin_fill: vec![0; scenario.bins.len()],
             touch_phase: None,
             phase: Phase::Wait,
             grip_recipe_n: scenario.gripper.grip_force_n,
@@ -360,7 +362,7 @@ impl<'a> Trial<'a> {
     }
 
     /// The bin the handled part rests in, if any.
-    pub(crate) fn bin_holding_part(&self) -> Option<String> {
+    pub(crate) fn bin_holding_part(&self) -> Option<BinId> {
         let pose = self
             .cell
             .body_pose(self.cell.items.parts()[self.current].body)?;
@@ -368,8 +370,8 @@ impl<'a> Trial<'a> {
         self.cell
             .bins
             .iter()
-            .find(|bin| bin.contains(&center))
-            .map(|bin| bin.name.clone())
+            .position(|bin| bin.contains(&center))
+            .map(BinId)
     }
 
     /// The largest move of a bottle since the belt last stopped, m.
