@@ -5,6 +5,7 @@
 mod arm;
 mod conveyor;
 mod error;
+mod idle;
 mod items;
 mod pad_stiction;
 mod part;
@@ -16,6 +17,7 @@ mod world;
 pub use arm::{ARM_JOINTS, ArmGains, ArmLink, FINGER_JOINTS, FINGER_LINKS, JAW_SPEED_M_S, SimArm};
 pub use conveyor::{BELT_ACCEL_M_S2, ConveyorHooks};
 pub use error::SimError;
+pub use idle::IDLE_STEPS;
 pub use items::{BottleItem, BottlePlacement, ItemSet, PartItem, body_pose};
 pub use pad_stiction::{CellHooks, PRESLIDE_RATE_HZ, PadStiction};
 pub use part::{BoreForm, PartInstance, tube_mass_kg};
