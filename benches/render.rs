@@ -111,6 +111,15 @@ fn render_benches(c: &mut Criterion) {
         group.bench_function(format!("render_readback_{w}x{h}"), |b| {
             b.iter(|| black_box(frame(&mut renderer, &gpu, &shot.exposure)))
         });
+        // The look's frame for the detector: one sample per pixel on the same renderer.
+        group.bench_function(format!("render_readback_single_sample_{w}x{h}"), |b| {
+            b.iter(
+                || match renderer.render_single_sample(&gpu, &shot.exposure) {
+                    Ok(image) => black_box(image),
+                    Err(e) => panic!("{e}"),
+                },
+            )
+        });
         let clean = frame(&mut renderer, &gpu, &shot.exposure);
         sensor_benches(&mut group, &shot, &clean, (w, h));
         group.bench_function(format!("upload_{w}x{h}"), |b| {

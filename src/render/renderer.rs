@@ -21,7 +21,7 @@ use super::pipeline::{
     ObjectUniform, build_pipeline, clip_from_camera, gpu_vertex,
 };
 use super::scene::{ObjectKind, Scene, SceneObject};
-use super::targets::{TargetCache, Targets, padded_row};
+use super::targets::{TargetCache, Targets, padded_row, rgb_from_rgba};
 
 /// The shading pipelines for one light count.
 struct Shaded {
@@ -39,8 +39,8 @@ pub struct Renderer {
     options: RendererOptions,
     module: wgpu::ShaderModule,
     layout: wgpu::PipelineLayout,
-    /// Shading pipelines by light count, built when a count is first used.
-    shaded: BTreeMap<usize, Shaded>,
+    /// Shading pipelines by light count and samples per pixel, built when first used.
+    shaded: BTreeMap<(usize, u32), Shaded>,
     ids: wgpu::RenderPipeline,
     globals: wgpu::Buffer,
     globals_group: wgpu::BindGroup,
@@ -230,15 +230,35 @@ impl Renderer {
         scene: &GpuScene,
         exposure: &Exposure,
     ) -> Result<RgbImage, RenderError> {
+        self.render_sampled(scene, exposure, self.options.msaa_samples)
+    }
+
+    /// [`Self::render`] with one sample per pixel whatever the renderer's MSAA: for an image
+    /// whose reader averages blocks of pixels anyway (the detector's frame), where the samples
+    /// would cost more than half of the frame's time and change little of what is read.
+    pub fn render_single_sample(
+        &mut self,
+        scene: &GpuScene,
+        exposure: &Exposure,
+    ) -> Result<RgbImage, RenderError> {
+        self.render_sampled(scene, exposure, 1)
+    }
+
+    /// Renders at `samples` samples per pixel (1 or the renderer's MSAA count).
+    fn render_sampled(
+        &mut self,
+        scene: &GpuScene,
+        exposure: &Exposure,
+        samples: u32,
+    ) -> Result<RgbImage, RenderError> {
         let s = self.options.supersample;
         let (w, h) = (exposure.width_px * s, exposure.height_px * s);
         let visible = self.prepare(scene, exposure)?;
-        let samples = self.options.msaa_samples;
         let class = self
             .targets
             .ensure(&self.device, &self.info.name, (w, h, false), samples)?;
         let lights = exposure.lights.len();
-        if !self.shaded.contains_key(&lights) {
+        if !self.shaded.contains_key(&(lights, samples)) {
             let build = |entry| {
                 build_pipeline(
                     &self.device,
@@ -254,9 +274,10 @@ impl Renderer {
                 plain: build("fs_main"),
                 stained: build("fs_stained"),
             };
-            self.shaded.insert(lights, shaded);
+            self.shaded.insert((lights, samples), shaded);
         }
-        let (Some(targets), Some(shaded)) = (self.targets.get(class), self.shaded.get(&lights))
+        let (Some(targets), Some(shaded)) =
+            (self.targets.get(class), self.shaded.get(&(lights, samples)))
         else {
             return Err(RenderError::Gpu("render targets missing".into()));
         };
@@ -274,32 +295,7 @@ impl Renderer {
             resolve,
         };
         self.draw_and_read(&frame, Pipelines::Shaded(shaded), |rgba| {
-            let row = padded_row(w) as usize;
-            let mut image = RgbImage::new(width, height);
-            if s == 1 {
-                let width = width as usize;
-                for (out_row, in_row) in image.chunks_exact_mut(width * 3).zip(rgba.chunks(row)) {
-                    for (out, px) in out_row.chunks_exact_mut(3).zip(in_row.chunks_exact(4)) {
-                        out.copy_from_slice(&px[..3]);
-                    }
-                }
-                return image;
-            }
-            let norm = 1.0 / f64::from(s * s);
-            for (x, y, pixel) in image.enumerate_pixels_mut() {
-                let mut sum = [0u32; 3];
-                for dy in 0..s {
-                    let base = ((y * s + dy) as usize) * row;
-                    for dx in 0..s {
-                        let i = base + ((x * s + dx) as usize) * 4;
-                        for c in 0..3 {
-                            sum[c] += u32::from(rgba[i + c]);
-                        }
-                    }
-                }
-                pixel.0 = sum.map(|v| (f64::from(v) * norm).round() as u8);
-            }
-            image
+            rgb_from_rgba(rgba, padded_row(w) as usize, (width, height), s)
         })
     }
 

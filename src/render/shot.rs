@@ -212,20 +212,29 @@ impl Shot {
         }
     }
 
-    /// Renders the shot: the image as the sensor delivers it.
+    /// Renders the shot: the image as the sensor delivers it, at the renderer's MSAA.
     pub fn render(&self, renderer: &mut Renderer) -> Result<image::RgbImage, RenderError> {
         let gpu = renderer.upload(&self.scene);
-        self.render_uploaded(renderer, &gpu)
+        let mut image = renderer.render(&gpu, &self.exposure)?;
+        self.sensor.apply(&mut image);
+        Ok(image)
     }
 
-    /// Renders the shot from its scene as already uploaded to `renderer` ([`Renderer::upload`]),
-    /// so that a frame and its areas of interest share one upload.
+    /// Renders the frame a look's detector reads, from the shot's scene as already uploaded to
+    /// `renderer` ([`Renderer::upload`]), so that the frame and its areas of interest share one
+    /// upload: the image as the sensor delivers it, drawn with one sample per pixel.
+    ///
+    /// The detector reads the frame through block means (4 x 4 frame pixels per input pixel at
+    /// 1280 x 960), which already average 16 samples per input pixel; MSAA's four per frame
+    /// pixel cost more than half of the frame's render and barely move what it reads. The
+    /// metrology reads its areas of interest ([`Shot::render_window`]) at full MSAA, where the
+    /// sub-pixel edges matter.
     pub fn render_uploaded(
         &self,
         renderer: &mut Renderer,
         gpu: &GpuScene,
     ) -> Result<image::RgbImage, RenderError> {
-        let mut image = renderer.render(gpu, &self.exposure)?;
+        let mut image = renderer.render_single_sample(gpu, &self.exposure)?;
         self.sensor.apply(&mut image);
         Ok(image)
     }

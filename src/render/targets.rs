@@ -3,6 +3,8 @@
 
 use std::collections::BTreeMap;
 
+use image::RgbImage;
+
 use super::error::RenderError;
 use super::pipeline::{COLOUR_FORMAT, DEPTH_FORMAT, ID_FORMAT};
 
@@ -36,15 +38,51 @@ pub(super) fn padded_row(w: u32) -> u32 {
     (w * 4).div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT
 }
 
-/// The targets a renderer keeps, by size class and kind (shaded or ids).
+/// The `width` x `height` RGB image in mapped RGBA rows `row` bytes apart, each image pixel the
+/// rounded mean of `s` x `s` target pixels (supersampling; `s` = 1 copies).
+pub(super) fn rgb_from_rgba(
+    rgba: &[u8],
+    row: usize,
+    (width, height): (u32, u32),
+    s: u32,
+) -> RgbImage {
+    let mut image = RgbImage::new(width, height);
+    if s == 1 {
+        let width = width as usize;
+        for (out_row, in_row) in image.chunks_exact_mut(width * 3).zip(rgba.chunks(row)) {
+            for (out, px) in out_row.chunks_exact_mut(3).zip(in_row.chunks_exact(4)) {
+                out.copy_from_slice(&px[..3]);
+            }
+        }
+        return image;
+    }
+    let norm = 1.0 / f64::from(s * s);
+    for (x, y, pixel) in image.enumerate_pixels_mut() {
+        let mut sum = [0u32; 3];
+        for dy in 0..s {
+            let base = ((y * s + dy) as usize) * row;
+            for dx in 0..s {
+                let i = base + ((x * s + dx) as usize) * 4;
+                for c in 0..3 {
+                    sum[c] += u32::from(rgba[i + c]);
+                }
+            }
+        }
+        pixel.0 = sum.map(|v| (f64::from(v) * norm).round() as u8);
+    }
+    image
+}
+
+/// The targets a renderer keeps, by size class, kind (shaded or ids) and samples per pixel.
 #[derive(Default)]
 pub(super) struct TargetCache {
-    targets: BTreeMap<(u32, u32, bool), Targets>,
+    targets: BTreeMap<ClassKey, Targets>,
     allocations: u64,
 }
 
-/// A key of [`TargetCache`]: a size class and whether the targets hold object ids.
-pub(super) type ClassKey = (u32, u32, bool);
+/// A key of [`TargetCache`]: a size class, whether the targets hold object ids, and the samples
+/// per pixel.
+pub(super) type ClassKey = (u32, u32, bool, u32);
 
 impl TargetCache {
     /// Makes sure targets of the size class holding a `w` x `h` image of the kind `ids` exist
@@ -58,7 +96,7 @@ impl TargetCache {
     ) -> Result<ClassKey, RenderError> {
         let (w, h, ids) = size;
         let (cw, ch) = size_class(w, h, device.limits().max_texture_dimension_2d);
-        let key = (cw, ch, ids);
+        let key = (cw, ch, ids, samples);
         if self.targets.contains_key(&key) {
             return Ok(key);
         }

@@ -3,6 +3,7 @@
 use rapier3d::prelude::*;
 
 use super::Tag;
+use super::idle::IdleArm;
 use crate::scenario::PhysicsSection;
 
 /// Solver substeps while no robot collider is within [`CONTACT_MARGIN_M`] of a moving body: the
@@ -77,6 +78,7 @@ pub struct World {
     pub physics: PhysicsWorld,
     params: WorldParams,
     steps: u64,
+    idle: IdleArm,
 }
 
 impl World {
@@ -108,7 +110,19 @@ impl World {
             physics,
             params,
             steps: 0,
+            idle: IdleArm::new(true),
         }
+    }
+
+    /// Whether the arm's multibody sleeps while it holds still with nothing near it (on by
+    /// default; see [`crate::sim::IDLE_STEPS`]). Turning it off wakes the arm at the next step.
+    pub fn set_idle_sleep(&mut self, enabled: bool) {
+        self.idle.set_enabled(enabled);
+    }
+
+    /// Whether the arm's multibody sleeps now.
+    pub fn arm_asleep(&self) -> bool {
+        self.idle.asleep()
     }
 
     /// The parameters the world was built with.
@@ -150,7 +164,14 @@ impl World {
     /// Advances the world by one fixed step with the given contact hooks: with the scenario's
     /// solver substeps while a robot collider is near a moving body, fewer while none is (see
     /// [`FREE_SOLVER_ITERATIONS`] for why).
+    ///
+    /// While the arm holds still, its commands unchanged and no moving body within rapier's
+    /// contact prediction of it, its multibody sleeps: its servos would only hold it where it
+    /// is, and its mass matrix is most of a step's cost. A new command or a body coming near
+    /// wakes it before the step that needs it.
     pub fn step_with_hooks(&mut self, hooks: &dyn PhysicsHooks) {
+        let clear = !self.robot_contacts_moving_body(f32::INFINITY);
+        self.idle.update(&mut self.physics, clear);
         self.physics.integration_parameters.num_solver_iterations = self.next_solver_iterations();
         self.physics.step_with_events(hooks, &());
         self.steps += 1;
@@ -159,9 +180,14 @@ impl World {
     /// Whether a robot collider has a contact point with a body that can move, touching or
     /// predicted within `contact_margin_m`, as of the last step.
     fn robot_near_moving_body(&self) -> bool {
+        self.robot_contacts_moving_body(self.params.contact_margin_m as f32)
+    }
+
+    /// Whether a robot collider has a contact point closer than `margin` (m) with a body that
+    /// can move, as of the last step.
+    fn robot_contacts_moving_body(&self, margin: f32) -> bool {
         let physics = &self.physics;
         let robot = Tag::Robot.bits();
-        let margin = self.params.contact_margin_m as f32;
         physics.narrow_phase.contact_pairs().any(|pair| {
             let (Some(c1), Some(c2)) = (
                 physics.colliders.get(pair.collider1),
@@ -242,6 +268,63 @@ mod tests {
         );
         world.step();
         world
+    }
+
+    /// The scenarios' default home pose.
+    fn home_q() -> [f64; 6] {
+        crate::scenario::RobotSection::default().home_q_rad
+    }
+
+    /// The arm at home under gravity with its jaws open as the cell puts them, held; with the
+    /// idle sleep on or off.
+    fn held_arm(sleep: bool) -> (World, SimArm) {
+        let mut world = World::new(WorldParams::default());
+        world.set_idle_sleep(sleep);
+        let arm = match SimArm::load_builtin(&mut world, Isometry3::translation(0.0, 0.0, 0.6)) {
+            Ok(arm) => arm,
+            Err(e) => panic!("{e}"),
+        };
+        arm.reset_to(&mut world, &home_q(), 0.045);
+        arm.dress_colliders(&mut world, 1.0);
+        (world, arm)
+    }
+
+    #[test]
+    fn an_idle_arm_sleeps_and_wakes_where_it_would_have_been() {
+        let (mut asleep, arm) = held_arm(true);
+        let (mut awake, _) = held_arm(false);
+        let q = home_q();
+        let bits = |world: &World| {
+            let q = arm.joint_positions(world);
+            let pads = arm.finger_positions_m(world);
+            (q.map(f64::to_bits), pads.map(f64::to_bits))
+        };
+        let mut slept = 0;
+        for _ in 0..240 {
+            for world in [&mut asleep, &mut awake] {
+                arm.command(world, &q, &[0.0; 6]);
+                arm.command_gripper(world, 0.045, 40.0);
+                world.step();
+            }
+            slept += usize::from(asleep.arm_asleep());
+            assert!(!awake.arm_asleep());
+            assert_eq!(bits(&asleep), bits(&awake));
+        }
+        assert!(slept > 120, "the held arm slept {slept} of 240 steps");
+        // A new command wakes it at once, and it moves as the arm that never slept.
+        let mut target = q;
+        target[0] += 0.2;
+        for step in 0..120 {
+            for world in [&mut asleep, &mut awake] {
+                arm.command(world, &target, &[0.0; 6]);
+                arm.command_gripper(world, 0.02, 40.0);
+                world.step();
+            }
+            assert!(!asleep.arm_asleep() || step > 12, "asleep at step {step}");
+            assert_eq!(bits(&asleep), bits(&awake), "step {step}");
+        }
+        let moved = arm.joint_positions(&asleep)[0] - q[0];
+        assert!(moved > 0.1, "the woken arm moved {moved} rad");
     }
 
     #[test]
