@@ -67,7 +67,7 @@ impl Catalogue {
             scenario
                 .bins
                 .iter()
-                .position(|b| !b.reject && b.accepts.iter().any(|t| *t == part.name))
+                .position(|b| !b.reject && b.accepts.contains(&part.name))
                 .map(BinId)
         };
         let parts = scenario
