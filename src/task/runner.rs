@@ -8,6 +8,7 @@ use super::camera_percept::{CameraPerception, CameraPerceptionError};
 use super::observer::{CellView, PerceptionFrame, TrialObserver, TrialObserverFactory};
 use super::trial::Trial;
 use crate::cell::{Cell, CellError};
+use crate::detect::DetectorModel;
 use crate::kinematics::AnalyticIk;
 use crate::outcome::{FailureReason, Perception, TrialRecord, TrialRunner};
 use crate::rng::SimRng;
@@ -37,14 +38,13 @@ pub struct CellTrialRunner {
 
 impl CellTrialRunner {
     /// A runner for `scenario` (read from `scenario_path`, which anchors a relative URDF path);
-    /// camera perception uses the shipped detector model (`assets/models/detector.onnx`).
+    /// camera perception uses the shipped detector model (built into the binary).
     pub fn new(
         scenario: Scenario,
         scenario_path: &Path,
         perception: Perception,
     ) -> Result<Self, RunnerError> {
-        let model = crate::detect::Detector::default_path();
-        Self::with_model(scenario, scenario_path, perception, &model)
+        Self::with_detector(scenario, scenario_path, perception, DetectorModel::Shipped)
     }
 
     /// As [`Self::new`], camera perception with the detector model at `model_path` (its model
@@ -54,6 +54,17 @@ impl CellTrialRunner {
         scenario_path: &Path,
         perception: Perception,
         model_path: &Path,
+    ) -> Result<Self, RunnerError> {
+        let model = DetectorModel::File(model_path.to_path_buf());
+        Self::with_detector(scenario, scenario_path, perception, model)
+    }
+
+    /// As [`Self::new`], camera perception with the detector's network `model`.
+    pub fn with_detector(
+        scenario: Scenario,
+        scenario_path: &Path,
+        perception: Perception,
+        model: DetectorModel,
     ) -> Result<Self, RunnerError> {
         let urdf = match &scenario.robot.urdf {
             Some(relative) => {
@@ -73,7 +84,7 @@ impl CellTrialRunner {
         };
         let camera = match perception {
             Perception::Camera => {
-                let camera = CameraPerception::new(&scenario, model_path.to_path_buf())
+                let camera = CameraPerception::new(&scenario, model)
                     .map_err(|e| RunnerError::Camera(Box::new(e)))?;
                 Some(Arc::new(camera))
             }
