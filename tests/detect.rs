@@ -8,7 +8,7 @@
 use std::collections::BTreeSet;
 use std::path::Path;
 
-use twincell::detect::{Detection, Detector};
+use twincell::detect::{Detection, Detector, DetectorModel};
 use twincell::render::{CameraRig, ObjectTruth, Renderer, RendererOptions, Shot};
 use twincell::scenario::{Scenario, SensorSection};
 
@@ -219,7 +219,8 @@ fn shipped_detector_knows_the_second_catalogue() {
     );
 }
 
-/// Detection is deterministic: the same image twice gives the same bytes.
+/// Detection is deterministic: the same image twice gives the same bytes, and the network built
+/// into the binary gives the same as the shipped file.
 #[test]
 fn detection_repeats_exactly() {
     let scenario = scenario();
@@ -247,6 +248,18 @@ fn detection_repeats_exactly() {
     };
     assert!(!a.is_empty());
     assert_eq!(a, b);
+    // The network built into the binary is the file the crate ships.
+    let shipped =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/models/detector.onnx");
+    let mut from_file = match Detector::open(&DetectorModel::File(shipped)) {
+        Ok(d) => d,
+        Err(e) => panic!("{e}"),
+    };
+    assert_eq!(from_file.card(), detector.card());
+    let Ok(c) = from_file.detect(&image) else {
+        panic!("detect");
+    };
+    assert_eq!(a, c);
 }
 
 /// A model card that is missing or names a bad threshold is refused, naming file and field.
@@ -255,13 +268,15 @@ fn bad_model_card_is_refused_with_its_file_and_field() {
     let dir = std::env::temp_dir().join(format!("twincell-detect-card-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap_or_else(|e| panic!("{e}"));
     let onnx = dir.join("net.onnx");
-    std::fs::copy(Detector::default_path(), &onnx).unwrap_or_else(|e| panic!("{e}"));
+    let shipped =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/models/detector.onnx");
+    std::fs::copy(&shipped, &onnx).unwrap_or_else(|e| panic!("{e}"));
     let Err(e) = Detector::load(&onnx) else {
         panic!("loaded without a card");
     };
     assert!(e.to_string().contains("net.json"), "{e}");
-    let card = std::fs::read_to_string(Detector::default_path().with_extension("json"))
-        .unwrap_or_else(|e| panic!("{e}"));
+    let card =
+        std::fs::read_to_string(shipped.with_extension("json")).unwrap_or_else(|e| panic!("{e}"));
     let bad = card.replacen("\"score_threshold\": ", "\"score_threshold\": 7", 1);
     std::fs::write(dir.join("net.json"), bad).unwrap_or_else(|e| panic!("{e}"));
     let Err(e) = Detector::load(&onnx) else {

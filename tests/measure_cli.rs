@@ -46,6 +46,7 @@ fn two_tubes() -> (Scene, [[f64; 3]; 2]) {
         ],
         bottles: vec![],
         stains: vec![],
+        rim_stains: vec![],
         illumination: Illumination {
             gradient_x: 0.1,
             gradient_y: 0.0,
@@ -276,6 +277,7 @@ fn doc_scene(ratio: f64, bore: BoreShape, centre_px: [f64; 2]) -> Scene {
             transmission: 0.7,
             soft_px: 3.0,
         }],
+        rim_stains: vec![],
         illumination: Illumination {
             gradient_x: 0.15,
             gradient_y: -0.1,

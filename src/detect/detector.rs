@@ -11,6 +11,32 @@ use super::nms::{Candidate, non_max_suppression};
 use super::runtime::session_builder;
 use super::{DetectError, Detection, Letterbox, ModelCard};
 
+/// The shipped network, built into the binary so that an installed binary needs no source tree.
+const SHIPPED_ONNX: &[u8] = include_bytes!("../../assets/models/detector.onnx");
+/// The shipped network's model card.
+const SHIPPED_CARD: &str = include_str!("../../assets/models/detector.json");
+/// Where the shipped network comes from in the source tree, for messages.
+const SHIPPED_NAME: &str = "assets/models/detector.onnx";
+
+/// Which network a detector runs.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum DetectorModel {
+    /// The network shipped with the crate (`assets/models/detector.onnx` and its card), built
+    /// into the binary.
+    Shipped,
+    /// An ONNX file with its model card beside it (same stem, `.json`): `--model FILE`.
+    File(PathBuf),
+}
+
+impl std::fmt::Display for DetectorModel {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Shipped => write!(f, "{SHIPPED_NAME} (built in)"),
+            Self::File(path) => write!(f, "{}", path.display()),
+        }
+    }
+}
+
 /// The part detector (see the module docs).
 #[derive(Debug)]
 pub struct Detector {
@@ -29,14 +55,22 @@ impl Detector {
         Ok(Self { session, card })
     }
 
-    /// The network shipped with the crate: `assets/models/detector.onnx`.
+    /// The network shipped with the crate, from the copy built into the binary.
     pub fn load_default() -> Result<Self, DetectError> {
-        Self::load(&Self::default_path())
+        let card = ModelCard::from_json(SHIPPED_CARD, Path::new(SHIPPED_NAME))?;
+        let context = || format!("loading {}", DetectorModel::Shipped);
+        let session = session_builder(context)?
+            .commit_from_memory(SHIPPED_ONNX)
+            .map_err(|e| DetectError::runtime(context(), &e))?;
+        Ok(Self { session, card })
     }
 
-    /// Where the shipped network lies.
-    pub fn default_path() -> PathBuf {
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/models/detector.onnx")
+    /// The network `model` names.
+    pub fn open(model: &DetectorModel) -> Result<Self, DetectError> {
+        match model {
+            DetectorModel::Shipped => Self::load_default(),
+            DetectorModel::File(path) => Self::load(path),
+        }
     }
 
     /// Class names in class-id order.

@@ -1,6 +1,6 @@
 //! The part detector: a small YOLO-style network (CSP backbone, SPPF, PAN neck, three anchor-free
 //! heads) trained on the twin's own renders by `training/`, shipped as ONNX in `assets/models/`
-//! with a model card, and run here through the `ort` API on its pure-Rust tract backend (or, with
+//! with a model card (both built into the binary: [`DetectorModel::Shipped`]), and run here through the `ort` API on its pure-Rust tract backend (or, with
 //! the feature `onnxruntime` instead of the default `tract`, on a native ONNX Runtime loaded from
 //! `ORT_DYLIB_PATH`).
 //!
@@ -19,7 +19,7 @@ mod nms;
 mod runtime;
 
 pub use detection::Detection;
-pub use detector::Detector;
+pub use detector::{Detector, DetectorModel};
 pub use error::DetectError;
 pub use letterbox::Letterbox;
 pub use model_card::ModelCard;

@@ -32,7 +32,16 @@ impl ModelCard {
             reason,
         };
         let text = std::fs::read_to_string(path).map_err(|e| err(e.to_string()))?;
-        let card: Self = serde_json::from_str(&text).map_err(|e| err(e.to_string()))?;
+        Self::from_json(&text, path)
+    }
+
+    /// Parses and checks the card `text` (read from `path`, named in errors).
+    pub fn from_json(text: &str, path: &Path) -> Result<Self, DetectError> {
+        let err = |reason: String| DetectError::Card {
+            path: path.to_path_buf(),
+            reason,
+        };
+        let card: Self = serde_json::from_str(text).map_err(|e| err(e.to_string()))?;
         card.validate().map_err(err)?;
         Ok(card)
     }

@@ -2,7 +2,9 @@
 //!
 //! Pipeline: filter (3x3 median) -> threshold (adaptive mean, asking pixels to be brighter than
 //! their block) -> border following -> for each hole border (a dark region fully enclosed by
-//! bright pixels): coarse Kasa circle -> rays from the coarse centre, sub-pixel edges
+//! bright pixels), and then for each hole border of a second segmentation (a share of the local
+//! maximum, [`crate::perception::max_threshold`]) away from the bores already found: coarse Kasa
+//! circle -> rays from the coarse centre, sub-pixel edges
 //! ([`crate::perception::subpixel`]) -> acceptance tests -> geometric circle fit with one round of
 //! outlier rejection -> filtered roundness ([`crate::perception::roundness`]).
 //!
@@ -19,7 +21,8 @@
 //!    level next to the edge before the rim ends (at any wall: no catalogue ratio is assumed;
 //!    the walk stops at `max_outer_ratio` times the radius), and where the rim ends inside the
 //!    image its median width is at least `min_ring_width_px`; and the rim's level next to the
-//!    edge is much the same all round (spread at most `max_rim_spread` of the contrast). A
+//!    edge is much the same all round, about a light gradient and where no oil darkens it
+//!    (spread at most `max_rim_spread` of the contrast). A
 //!    standing bottle's dark cap sits in a translucent body that brightens towards its limb, a
 //!    lying one's between its body and the belt: they fail this test.
 //! 5. Circularity: filtered roundness at most `max_roundness_ratio` times the radius. A lying
@@ -31,17 +34,16 @@
 
 use crate::perception::border_cut::cut_bore;
 pub use crate::perception::border_cut::{BoreReport, SkipReason, SkippedBore};
+pub use crate::perception::bore_params::BoreDetectorParams;
 use crate::perception::circle_fit::{fit_geometric, fit_kasa, raw_roundness};
 use crate::perception::contours::{BorderKind, Contour, binned_radii, find_contours};
 use crate::perception::error::PerceptionError;
-use crate::perception::filters::FilterMethod;
 use crate::perception::integer_edges::{canny_points, integer_fit};
 use crate::perception::rim::{RimParams, scan_rim};
 use crate::perception::robust_series::fit_series_robust;
-use crate::perception::roundness::{DEFAULT_MAX_UPR, filtered_roundness_bridged, median_of};
-use crate::perception::segment::segment;
-use crate::perception::subpixel::{EdgePoint, RayDir, RayParams, RaySteps, refine_ray_in_steps};
-use crate::perception::threshold::ThresholdMethod;
+use crate::perception::roundness::{filtered_roundness_bridged, median_of};
+use crate::perception::segment::{second_segmentation, segment};
+use crate::perception::subpixel::{EdgePoint, RayDir, RaySteps, refine_ray_in_steps};
 use image::GrayImage;
 use std::f64::consts::TAU;
 
@@ -64,134 +66,6 @@ impl EdgeMode {
             Self::IntegerContour => "integer-contour",
             Self::Canny => "canny-integer",
         }
-    }
-}
-
-/// Parameters of [`BoreDetector`].
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct BoreDetectorParams {
-    /// Denoising filter.
-    pub filter: FilterMethod,
-    /// Segmentation of the bright rim.
-    pub threshold: ThresholdMethod,
-    /// Which edge points to fit.
-    pub edge_mode: EdgeMode,
-    /// Also count as bright every pixel above the filtered image's Otsu level. A wide rim's flat
-    /// middle is no brighter than its block's mean, so the adaptive threshold alone leaves it
-    /// dark, and noise or a stain at the bore edge then joins the bore to it (on the suite this
-    /// lost 10 of 564 bores, all thick walls or noisy frames).
-    pub bright_above_otsu: bool,
-    /// Smallest bore radius reported.
-    pub min_radius_px: f64,
-    /// Largest bore radius reported.
-    pub max_radius_px: f64,
-    /// Smallest median `(rim - bore) / rim`.
-    pub min_contrast_ratio: f64,
-    /// Smallest median `rim - bore`, grey levels.
-    pub min_contrast_levels: f64,
-    /// Farthest the rim walk goes, as a ratio of the outer to the bore radius.
-    pub max_outer_ratio: f64,
-    /// Smallest median rim width, where the rim ends inside the image.
-    pub min_ring_width_px: f64,
-    /// Share of the walked rays whose rim must be flat.
-    pub min_flat_share: f64,
-    /// Largest spread of the rim's level around the bore, as a share of the contrast (see
-    /// [`crate::perception::rim::RimScan::rim_spread`]).
-    pub max_rim_spread: f64,
-    /// Share of rays that must show an edge.
-    pub min_valid_share: f64,
-    /// Largest roundness as a share of the radius.
-    pub max_roundness_ratio: f64,
-    /// Largest departure of the levels just either side of an edge from those further out, as a
-    /// share of the contrast, for the edge to count (see [`EdgePoint::flank_departure`]).
-    pub max_flank_departure: f64,
-    /// Edges further than this many robust scales from the robust series are outliers.
-    pub outlier_scales: f64,
-    /// Smallest robust scale of the edge radii, pixels.
-    pub edge_scale_floor_px: f64,
-    /// Share of the rays that must keep a clean edge.
-    pub min_clean_share: f64,
-    /// Roundness profile cutoff, undulations per revolution.
-    pub max_upr: usize,
-    /// Rays per bore: one per this many pixels of the coarse circumference, within `ray_range`.
-    pub ray_spacing_px: f64,
-    /// Fewest and most rays per bore.
-    pub ray_range: [usize; 2],
-    /// Ray sampling.
-    pub rays: RayParams,
-}
-
-impl Default for BoreDetectorParams {
-    fn default() -> Self {
-        Self {
-            filter: FilterMethod::Median { radius_px: 1 },
-            threshold: ThresholdMethod::AdaptiveMean {
-                block_radius_px: 20,
-                delta: -15,
-            },
-            edge_mode: EdgeMode::SubPixel,
-            bright_above_otsu: true,
-            // Below the smallest bore asked for (12 px), so that one fitted a hair small stays.
-            min_radius_px: 10.0,
-            // Bores up to a third of a 1280x960 frame's height and more.
-            max_radius_px: 400.0,
-            // A dark bore in machined metal keeps at least 0.79 of the rim's level below it under
-            // any light on the suite (0.9 and more on the rendered end faces: albedo 0.72 against
-            // 0.035); shares are illumination-invariant. A dark plastic cap in a translucent body
-            // or between it and a grey belt reaches 0.65.
-            min_contrast_ratio: 0.7,
-            min_contrast_levels: 25.0,
-            // Walls of 1.15 to 3 times the bore, and some margin.
-            max_outer_ratio: 3.3,
-            min_ring_width_px: 1.5,
-            min_flat_share: 0.6,
-            // A linear light gradient of 40 % across the frame spreads a 160 px bore's rim by
-            // about 0.15; a lying bottle's dark cap between its body and the belt by more.
-            max_rim_spread: 0.3,
-            min_valid_share: 0.7,
-            max_roundness_ratio: 0.25,
-            max_flank_departure: 0.05,
-            outlier_scales: 3.0,
-            edge_scale_floor_px: 0.03,
-            min_clean_share: 0.4,
-            max_upr: DEFAULT_MAX_UPR,
-            // About a ray per pixel of circumference, 180 to 720 (a quarter degree apart at
-            // most). Fewer rays are faster but noisier: a ray per two pixels, 128 to 360, halves
-            // the rays' time and makes roundness about 20 % noisier (docs/measure.md, "Rays
-            // against speed and accuracy"); the default keeps the accuracy.
-            ray_spacing_px: 1.0,
-            ray_range: [180, 720],
-            rays: RayParams::default(),
-        }
-    }
-}
-
-impl BoreDetectorParams {
-    /// The parameters for images with `factor` times the pixels per millimetre these are tuned
-    /// for (an area of interest read at a finer pitch): the spatial windows and size limits
-    /// scale; the edge profile's, set by the optics' blur in pixels, do not.
-    pub fn at_scale(mut self, factor: f64) -> Self {
-        let scale_px = |v: u32| ((f64::from(v) * factor).round() as u32).max(1);
-        self.threshold = match self.threshold {
-            ThresholdMethod::AdaptiveMean {
-                block_radius_px,
-                delta,
-            } => ThresholdMethod::AdaptiveMean {
-                block_radius_px: scale_px(block_radius_px),
-                delta,
-            },
-            ThresholdMethod::AdaptiveGaussian { sigma_px, delta } => {
-                ThresholdMethod::AdaptiveGaussian {
-                    sigma_px: sigma_px * factor as f32,
-                    delta,
-                }
-            }
-            global => global,
-        };
-        self.min_radius_px *= factor;
-        self.max_radius_px *= factor;
-        self.min_ring_width_px *= factor;
-        self
     }
 }
 
@@ -288,7 +162,96 @@ impl BoreDetector {
         }
         let (filtered, binary) = segment(&self.params, image);
         let contours = find_contours(&binary);
-        Ok(self.report_contours(&filtered, &binary, &contours))
+        let mut report = self.report_contours(&filtered, &binary, &contours);
+        if let Some(second) = second_segmentation(&self.params, &filtered) {
+            let contours = find_contours(&second);
+            self.add_unseen(&filtered, &second, &contours, &mut report);
+        }
+        Ok(report)
+    }
+
+    /// Adds to `report` the bores (and cut bores) of the hole borders in `contours` (of another
+    /// segmentation of `filtered`) that lie away from those it holds; those it holds stay as
+    /// they are.
+    fn add_unseen(
+        &self,
+        filtered: &GrayImage,
+        binary: &GrayImage,
+        contours: &[Contour],
+        report: &mut BoreReport,
+    ) {
+        let canny = match self.params.edge_mode {
+            EdgeMode::Canny => Some(crate::perception::edges::canny(binary, 50.0, 150.0)),
+            _ => None,
+        };
+        let min_points = (0.5 * TAU * self.params.min_radius_px) as usize;
+        let apart = |a: [f64; 2], ra: f64, b: [f64; 2], rb: f64| {
+            (a[0] - b[0]).hypot(a[1] - b[1]) >= 0.5 * ra.min(rb)
+        };
+        let mut added = false;
+        for contour in contours.iter().filter(|c| c.kind == BorderKind::Hole) {
+            if contour.points_px.len() < min_points {
+                continue;
+            }
+            // The border's centroid and mean distance from it: enough to tell a place apart.
+            let n = contour.points_px.len() as f64;
+            let [sx, sy] = contour.points_px.iter().fold([0.0, 0.0], |[x, y], q| {
+                [x + f64::from(q[0]), y + f64::from(q[1])]
+            });
+            let centre = [sx / n, sy / n];
+            let radius = contour
+                .points_px
+                .iter()
+                .map(|q| (f64::from(q[0]) - centre[0]).hypot(f64::from(q[1]) - centre[1]))
+                .sum::<f64>()
+                / n;
+            let unseen = |c: [f64; 2], r: f64| {
+                report
+                    .bores
+                    .iter()
+                    .all(|b| apart(b.centre_px, b.radius_px, c, r))
+                    && report
+                        .skipped
+                        .iter()
+                        .all(|s| apart(s.centre_px, s.radius_px, c, r))
+            };
+            if !unseen(centre, radius) {
+                // A bore measured far out of round may be one run together with oil on its rim:
+                // this hole, measured on its own, replaces it if it is much rounder.
+                let suspect = report.bores.iter().position(|b| {
+                    !apart(b.centre_px, b.radius_px, centre, radius)
+                        && b.roundness_px > self.params.recheck_roundness_ratio * b.radius_px
+                });
+                if let Some(i) = suspect
+                    && let Candidate::Measured(bore) =
+                        self.measure_candidate(filtered, canny.as_ref(), contour)
+                    && bore.roundness_px < 0.5 * report.bores[i].roundness_px
+                {
+                    report.bores[i] = bore;
+                    added = true;
+                }
+                continue;
+            }
+            match self.measure_candidate(filtered, canny.as_ref(), contour) {
+                Candidate::Measured(bore) if unseen(bore.centre_px, bore.radius_px) => {
+                    report.bores.push(bore);
+                    added = true;
+                }
+                Candidate::Skipped(skip) if unseen(skip.centre_px, skip.radius_px) => {
+                    report.skipped.push(skip);
+                    added = true;
+                }
+                _ => {}
+            }
+        }
+        if added {
+            report
+                .bores
+                .sort_by(|a, b| by_position(&a.centre_px, &b.centre_px));
+            report
+                .skipped
+                .sort_by(|a, b| by_position(&a.centre_px, &b.centre_px));
+        }
     }
 
     /// The stages after border following: candidates, edges, tests, fits.
@@ -334,8 +297,6 @@ impl BoreDetector {
                 kept.push(bore);
             }
         }
-        let by_position =
-            |a: &[f64; 2], b: &[f64; 2]| a[1].total_cmp(&b[1]).then(a[0].total_cmp(&b[0]));
         kept.sort_by(|a, b| by_position(&a.centre_px, &b.centre_px));
         skipped.sort_by(|a, b| by_position(&a.centre_px, &b.centre_px));
         BoreReport {
@@ -551,6 +512,11 @@ impl BoreDetector {
         }
         Some(CleanArcs { points, bridges })
     }
+}
+
+/// Orders points by `y`, then `x`.
+fn by_position(a: &[f64; 2], b: &[f64; 2]) -> std::cmp::Ordering {
+    a[1].total_cmp(&b[1]).then(a[0].total_cmp(&b[0]))
 }
 
 /// Order of the robust outline of a hole border: enough for an off-centre origin (1), ellipses

@@ -18,6 +18,7 @@
 
 pub mod border_cut;
 pub mod bore;
+pub mod bore_params;
 pub mod calibration;
 pub mod circle_fit;
 pub(crate) mod contour_scan;
@@ -26,12 +27,15 @@ pub mod edges;
 pub mod error;
 pub mod filters;
 pub mod integer_edges;
+pub mod max_threshold;
 pub mod ray_samples;
 pub mod rim;
+pub mod rim_stain;
 pub mod robust_series;
 pub mod roundness;
 pub mod running_sums;
 pub mod scene_draw;
+pub mod scene_heavy;
 pub mod scene_space;
 pub(crate) mod segment;
 pub mod subpixel;

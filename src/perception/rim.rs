@@ -58,9 +58,10 @@ pub struct RimScan {
     pub bore_level: f64,
     /// Median level of the rim next to the edge.
     pub rim_level: f64,
-    /// Spread of the rim's level next to the edge around the bore (75th minus 25th percentile
-    /// over the rays), as a share of the contrast: small for one machined face under smooth
-    /// light, large for a dark disc between a bottle's body and the belt.
+    /// Spread of the rim's level next to the edge around the bore, about a linear light
+    /// gradient and over its brighter half (see `spread_under_light`), as a share of the
+    /// contrast: small for one machined face under smooth light, oiled or not, large for a dark
+    /// disc between a bottle's body and the belt.
     pub rim_spread: f64,
     /// Share of the walked rays whose rim stayed flat.
     pub flat_share: f64,
@@ -89,6 +90,7 @@ pub fn scan_rim(
         .collect();
     let mut bore_levels = Vec::with_capacity(units.len());
     let mut rim_levels = Vec::with_capacity(units.len());
+    let mut rim_units = Vec::with_capacity(units.len());
     for &[c, s] in &units {
         let r = radius_at([c, s]);
         let (bx, by) = (centre[0] + 0.5 * r * c, centre[1] + 0.5 * r * s);
@@ -104,18 +106,16 @@ pub fn scan_rim(
             .fold(f64::NEG_INFINITY, f64::max);
         if rim.is_finite() {
             rim_levels.push(rim);
+            rim_units.push([c, s]);
         }
     }
     if bore_levels.len() < units.len() / 2 || rim_levels.len() < units.len() / 2 {
         return None;
     }
     let bore_level = median_of(&mut bore_levels);
-    let rim_level = median_of(&mut rim_levels);
+    let rim_level = median_of(&mut rim_levels.clone());
     let contrast = rim_level - bore_level;
-    rim_levels.sort_by(f64::total_cmp);
-    let percentile = |q: f64| rim_levels[((rim_levels.len() - 1) as f64 * q).round() as usize];
-    // The middle half only: a stain may darken the rim on a quarter of the rays.
-    let rim_spread = (percentile(0.75) - percentile(0.25)) / contrast.max(1.0);
+    let rim_spread = spread_under_light(&rim_units, &rim_levels, contrast);
     let end_level = bore_level + params.end_share * contrast;
     let mut flat = 0usize;
     let mut walked = 0usize;
@@ -186,6 +186,51 @@ pub fn scan_rim(
     })
 }
 
+/// Spread of the rim's `levels` on rays along `units` about a first harmonic `a + b cos + c
+/// sin` (a linear light gradient across the rim), the brighter half only (90th minus 50th
+/// percentile of the residuals), as a share of `contrast`.
+///
+/// Oil only darkens, and may lie on a third of the rim and more: the harmonic is fitted to the
+/// rays that stay within a tenth of the contrast below it, three times over.
+fn spread_under_light(units: &[[f64; 2]], levels: &[f64], contrast: f64) -> f64 {
+    let contrast = contrast.max(1.0);
+    let mut kept = vec![true; levels.len()];
+    let mut residuals = levels.to_vec();
+    for _ in 0..3 {
+        let Some(fit) = fit_first_harmonic(units, levels, &kept) else {
+            break;
+        };
+        for ((r, &level), &[c, s]) in residuals.iter_mut().zip(levels).zip(units) {
+            *r = level - (fit[0] + fit[1] * c + fit[2] * s);
+        }
+        for (k, &r) in kept.iter_mut().zip(&residuals) {
+            *k = r >= -0.1 * contrast;
+        }
+    }
+    residuals.sort_by(f64::total_cmp);
+    let percentile = |q: f64| residuals[((residuals.len() - 1) as f64 * q).round() as usize];
+    (percentile(0.9) - percentile(0.5)) / contrast
+}
+
+/// Least-squares `[a, b, c]` of `level = a + b cos + c sin` over the `kept` rays; `None` when
+/// fewer than 8 are kept or they do not pin the harmonic down.
+fn fit_first_harmonic(units: &[[f64; 2]], levels: &[f64], kept: &[bool]) -> Option<[f64; 3]> {
+    let mut normal = nalgebra::Matrix3::<f64>::zeros();
+    let mut rhs = nalgebra::Vector3::<f64>::zeros();
+    let mut n = 0;
+    for ((&[c, s], &level), _) in units.iter().zip(levels).zip(kept).filter(|(_, k)| **k) {
+        let row = nalgebra::Vector3::new(1.0, c, s);
+        normal += row * row.transpose();
+        rhs += row * level;
+        n += 1;
+    }
+    if n < 8 {
+        return None;
+    }
+    let solution = normal.cholesky()?.solve(&rhs);
+    Some([solution[0], solution[1], solution[2]])
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -199,6 +244,7 @@ mod tests {
             tubes,
             bottles,
             stains: vec![],
+            rim_stains: vec![],
             illumination: Illumination {
                 gradient_x: 0.3,
                 gradient_y: -0.2,

@@ -169,6 +169,7 @@ pub fn random_scene(seed: u64, width_px: u32, height_px: u32, difficulty: Diffic
         tubes,
         bottles,
         stains,
+        rim_stains: Vec::new(),
         illumination,
         noise,
         noise_seed: rng.next_u64(),

@@ -53,6 +53,56 @@ type Disc = ([f64; 2], f64);
 /// Draws a scene of `width_px` x `height_px` from `seed`.
 pub fn space_scene(seed: u64, width_px: u32, height_px: u32) -> SpaceScene {
     let mut rng = SimRng::new(seed);
+    let layout = draw_layout(&mut rng, width_px, height_px);
+    let belt_level = draw_belt_level(&mut rng);
+    let (sigma, salt_pepper) = match rng.below(4) {
+        0 => (0.0, 0.0),
+        1 => (rng.range(0.5, 3.0), 0.0),
+        2 => (rng.range(3.0, 7.0), rng.range(0.0, 0.01)),
+        _ => (rng.range(7.0, 12.0), rng.range(0.01, 0.04)),
+    };
+    let scene = Scene {
+        width_px,
+        height_px,
+        belt_level,
+        tubes: layout.tubes,
+        bottles: layout.bottles,
+        stains: layout.stains,
+        rim_stains: Vec::new(),
+        illumination: Illumination {
+            gradient_x: rng.range(-0.4, 0.4),
+            gradient_y: rng.range(-0.4, 0.4),
+            vignetting: rng.range(0.0, 0.3),
+        },
+        noise: Noise { sigma, salt_pepper },
+        noise_seed: rng.next_u64(),
+    };
+    SpaceScene {
+        scene,
+        bores: layout.bores,
+    }
+}
+
+/// The tubes of a drawn scene with their truth, and the bottles and stains beside them.
+pub(crate) struct Layout {
+    pub(crate) tubes: Vec<Tube>,
+    pub(crate) bores: Vec<SpaceBore>,
+    pub(crate) bottles: Vec<Bottle>,
+    pub(crate) stains: Vec<Stain>,
+}
+
+/// A dark (25-60) or mid-grey (80-115) belt, in even odds.
+pub(crate) fn draw_belt_level(rng: &mut SimRng) -> f64 {
+    if rng.uniform() < 0.5 {
+        rng.range(25.0, 60.0)
+    } else {
+        rng.range(80.0, 115.0)
+    }
+}
+
+/// One to six tubes over the whole space, bottles and stains, on a frame of `width_px` x
+/// `height_px`.
+pub(crate) fn draw_layout(rng: &mut SimRng, width_px: u32, height_px: u32) -> Layout {
     let (w, h) = (f64::from(width_px), f64::from(height_px));
     let max_bore = (h / 3.0).max(MIN_BORE_RADIUS_PX + 1.0);
     let mut discs: Vec<Disc> = Vec::new();
@@ -67,10 +117,10 @@ pub fn space_scene(seed: u64, width_px: u32, height_px: u32) -> SpaceScene {
             MIN_WALL_RATIO.max(1.0 + MIN_WALL_PX / radius),
             MAX_WALL_RATIO,
         );
-        let shape = draw_shape(&mut rng, radius);
+        let shape = draw_shape(rng, radius);
         let outer = ratio * radius;
         let cut = rng.uniform() < 0.15;
-        let Some(centre) = place_tube(&mut rng, &shape, outer, cut, &discs, [w, h]) else {
+        let Some(centre) = place_tube(rng, &shape, outer, cut, &discs, [w, h]) else {
             continue;
         };
         discs.push((centre, outer));
@@ -93,35 +143,14 @@ pub fn space_scene(seed: u64, width_px: u32, height_px: u32) -> SpaceScene {
         });
         tubes.push(tube);
     }
-    let bottles = draw_bottles(&mut rng, &mut discs, [w, h]);
-    let stains = draw_stains(&mut rng, &tubes, [w, h]);
-    let belt_level = if rng.uniform() < 0.5 {
-        rng.range(25.0, 60.0)
-    } else {
-        rng.range(80.0, 115.0)
-    };
-    let (sigma, salt_pepper) = match rng.below(4) {
-        0 => (0.0, 0.0),
-        1 => (rng.range(0.5, 3.0), 0.0),
-        2 => (rng.range(3.0, 7.0), rng.range(0.0, 0.01)),
-        _ => (rng.range(7.0, 12.0), rng.range(0.01, 0.04)),
-    };
-    let scene = Scene {
-        width_px,
-        height_px,
-        belt_level,
+    let bottles = draw_bottles(rng, &mut discs, [w, h]);
+    let stains = draw_stains(rng, &tubes, [w, h]);
+    Layout {
         tubes,
+        bores,
         bottles,
         stains,
-        illumination: Illumination {
-            gradient_x: rng.range(-0.4, 0.4),
-            gradient_y: rng.range(-0.4, 0.4),
-            vignetting: rng.range(0.0, 0.3),
-        },
-        noise: Noise { sigma, salt_pepper },
-        noise_seed: rng.next_u64(),
-    };
-    SpaceScene { scene, bores }
+    }
 }
 
 /// A circle, an ellipse or a 2-/3-lobed bore of mean radius about `radius`, out of round by up

@@ -5,6 +5,7 @@
 use crate::perception::border_cut::brighten_frame;
 use crate::perception::bore::BoreDetectorParams;
 use crate::perception::filters::{FilterMethod, median_3x3_with_histogram};
+use crate::perception::max_threshold::local_max_threshold;
 use crate::perception::threshold::{
     ThresholdMethod, adaptive_mean_threshold_floored, brighten_above, otsu_level,
     otsu_level_of_histogram,
@@ -50,4 +51,18 @@ pub(crate) fn segment(params: &BoreDetectorParams, image: &GrayImage) -> (GrayIm
     // the frame, so it can be recognised and skipped rather than lost without a word.
     brighten_frame(&mut binary);
     (filtered, binary)
+}
+
+/// The second segmentation of `filtered` (against the local maximum) with its bright frame, if
+/// `params` ask for one.
+pub(crate) fn second_segmentation(
+    params: &BoreDetectorParams,
+    filtered: &GrayImage,
+) -> Option<GrayImage> {
+    let share = params.local_max_share?;
+    // A bore is at least `min_contrast_levels` darker than its rim.
+    let floor = params.min_contrast_levels.clamp(0.0, 255.0) as u8;
+    let mut binary = local_max_threshold(filtered, params.local_max_reach_tiles, share, floor);
+    brighten_frame(&mut binary);
+    Some(binary)
 }

@@ -7,6 +7,7 @@
 
 use crate::rng::SimRng;
 
+pub use crate::perception::rim_stain::RimStain;
 pub use crate::perception::scene_draw::{Difficulty, random_scene};
 use image::{GrayImage, Luma};
 use std::f64::consts::TAU;
@@ -233,6 +234,8 @@ pub struct Scene {
     pub bottles: Vec<Bottle>,
     /// Oil stains.
     pub stains: Vec<Stain>,
+    /// Oil along arcs of the tubes' end faces.
+    pub rim_stains: Vec<RimStain>,
     /// Light.
     pub illumination: Illumination,
     /// Sensor noise.
@@ -312,6 +315,11 @@ impl Scene {
             .stains
             .iter()
             .any(|s| near_radius(s.centre_px, s.radius_at(angle(s.centre_px))))
+            || self.rim_stains.iter().any(|s| {
+                self.tubes
+                    .get(s.tube)
+                    .is_some_and(|t| s.sharp_boundary_near(t, x, y, EDGE_BAND_PX))
+            })
             || self.bottles.iter().any(|b| match *b {
                 Bottle::Standing {
                     centre_px,
@@ -343,15 +351,22 @@ impl Scene {
                 value = v;
             }
         }
-        for tube in &self.tubes {
+        // The tube whose face (not bore) the point lies on, if any.
+        let mut face = None;
+        for (i, tube) in self.tubes.iter().enumerate() {
             let (dx, dy) = (x - tube.centre_px[0], y - tube.centre_px[1]);
             let rho = (dx * dx + dy * dy).sqrt();
             if rho < tube.outer_radius_px {
-                value = if rho < tube.bore.radius_at(dy.atan2(dx)) {
-                    tube.bore_level
+                (value, face) = if rho < tube.bore.radius_at(dy.atan2(dx)) {
+                    (tube.bore_level, None)
                 } else {
-                    tube.rim_level
+                    (tube.rim_level, Some(i))
                 };
+            }
+        }
+        if let Some(i) = face {
+            for stain in self.rim_stains.iter().filter(|s| s.tube == i) {
+                value *= stain.factor(&self.tubes[i], x, y);
             }
         }
         for stain in &self.stains {
@@ -458,6 +473,7 @@ pub(crate) fn disc_scene(cx: f64, cy: f64, r: f64) -> image::GrayImage {
         }],
         bottles: vec![],
         stains: vec![],
+        rim_stains: vec![],
         illumination: Illumination::EVEN,
         noise: Noise::NONE,
         noise_seed: 0,
@@ -506,6 +522,7 @@ mod tests {
             }],
             bottles: vec![],
             stains: vec![],
+            rim_stains: vec![],
             illumination: Illumination::EVEN,
             noise: Noise::NONE,
             noise_seed: 0,

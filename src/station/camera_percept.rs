@@ -7,7 +7,6 @@
 //! never read. Renderers and detectors are expensive to make, so each worker thread takes one from
 //! a pool and puts it back: results do not depend on which instance served a trial.
 
-use std::path::PathBuf;
 use std::sync::Mutex;
 use std::time::Instant;
 
@@ -16,7 +15,7 @@ use nalgebra::Point3;
 
 use super::bottle_fit::{BottleFitter, BottlePose};
 use crate::camera::CameraCalibration;
-use crate::detect::{Detection, Detector};
+use crate::detect::{Detection, Detector, DetectorModel};
 use crate::perception::calibration::{MeasureOnPlane, PlaneBore};
 use crate::perception::roundness::DEFAULT_MAX_UPR;
 use crate::perception::{Bore, BoreDetector, BoreDetectorParams};
@@ -51,8 +50,8 @@ pub enum CameraPerceptionError {
     UnknownType {
         /// The scenario's type name.
         name: String,
-        /// The model file.
-        model: PathBuf,
+        /// The detector's network.
+        model: DetectorModel,
         /// The model's classes.
         classes: String,
     },
@@ -132,7 +131,7 @@ pub struct CameraPerception {
     rig: CameraRig,
     roi_scale: u32,
     options: RendererOptions,
-    model_path: PathBuf,
+    model: DetectorModel,
     renderers: Mutex<Vec<Renderer>>,
     detectors: Mutex<Vec<Detector>>,
     bore_detector: BoreDetector,
@@ -146,7 +145,7 @@ impl std::fmt::Debug for CameraPerception {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("CameraPerception")
             .field("rig", &self.rig)
-            .field("model_path", &self.model_path)
+            .field("model", &self.model)
             .finish_non_exhaustive()
     }
 }
@@ -168,9 +167,9 @@ fn give_back<T>(pool: &Mutex<Vec<T>>, item: T) {
 }
 
 impl CameraPerception {
-    /// The pipeline for `scenario` with the detector model at `model_path`: makes one renderer
-    /// and loads the model once, so that a missing adapter or model fails here, before any trial.
-    pub fn new(scenario: &Scenario, model_path: PathBuf) -> Result<Self, CameraPerceptionError> {
+    /// The pipeline for `scenario` with the detector's network `model`: makes one renderer and
+    /// loads the model once, so that a missing adapter or model fails here, before any trial.
+    pub fn new(scenario: &Scenario, model: DetectorModel) -> Result<Self, CameraPerceptionError> {
         let rig = CameraRig::from_scenario(scenario)
             .map_err(|e| CameraPerceptionError::Camera(e.to_string()))?;
         let options = RendererOptions {
@@ -178,7 +177,7 @@ impl CameraPerception {
             supersample: scenario.camera.supersample,
         };
         let renderer = Renderer::new(options)?;
-        let detector = Detector::load(&model_path)?;
+        let detector = Detector::open(&model)?;
         let classes = detector.class_names().to_vec();
         let class_index = |name: &str| classes.iter().position(|c| c == name);
         let mut type_of_class = vec![None; classes.len()];
@@ -186,7 +185,7 @@ impl CameraPerception {
             let Some(class) = class_index(&part_type.name) else {
                 return Err(CameraPerceptionError::UnknownType {
                     name: part_type.name.clone(),
-                    model: model_path,
+                    model,
                     classes: classes.join(", "),
                 });
             };
@@ -197,7 +196,7 @@ impl CameraPerception {
             rig,
             roi_scale: scenario.camera.roi_scale,
             options,
-            model_path,
+            model,
             renderers: Mutex::new(vec![renderer]),
             detectors: Mutex::new(vec![detector]),
             bore_detector: BoreDetector::new(
@@ -260,7 +259,7 @@ impl CameraPerception {
         let mut render_ms = started.elapsed().as_secs_f64() * 1e3;
 
         let started = Instant::now();
-        let mut detector = take(&self.detectors, || Detector::load(&self.model_path))?;
+        let mut detector = take(&self.detectors, || Detector::open(&self.model))?;
         let detections = detector.detect(&image);
         give_back(&self.detectors, detector);
         let detections = detections?;

@@ -7,6 +7,7 @@ use std::time::Instant;
 use super::observer::{CellView, PerceptionFrame, TrialObserver, TrialObserverFactory};
 use super::trial::Trial;
 use crate::cell::{Cell, CellError, CellModel};
+use crate::detect::DetectorModel;
 use crate::outcome::{FailureReason, Perception, TrialRecord, TrialRunner};
 use crate::rng::SimRng;
 use crate::scenario::Scenario;
@@ -33,14 +34,13 @@ pub struct CellTrialRunner {
 
 impl CellTrialRunner {
     /// A runner for `scenario` (read from `scenario_path`, which anchors a relative URDF path);
-    /// camera perception uses the shipped detector model (`assets/models/detector.onnx`).
+    /// camera perception uses the shipped detector model (built into the binary).
     pub fn new(
         scenario: Scenario,
         scenario_path: &Path,
         perception: Perception,
     ) -> Result<Self, RunnerError> {
-        let model = crate::detect::Detector::default_path();
-        Self::with_model(scenario, scenario_path, perception, &model)
+        Self::with_detector(scenario, scenario_path, perception, DetectorModel::Shipped)
     }
 
     /// As [`Self::new`], camera perception with the detector model at `model_path` (its model
@@ -51,9 +51,20 @@ impl CellTrialRunner {
         perception: Perception,
         model_path: &Path,
     ) -> Result<Self, RunnerError> {
+        let detector = DetectorModel::File(model_path.to_path_buf());
+        Self::with_detector(scenario, scenario_path, perception, detector)
+    }
+
+    /// As [`Self::new`], camera perception with the detector's network `detector`.
+    pub fn with_detector(
+        scenario: Scenario,
+        scenario_path: &Path,
+        perception: Perception,
+        detector: DetectorModel,
+    ) -> Result<Self, RunnerError> {
         let camera = match perception {
             Perception::Camera => {
-                let camera = CameraPerception::new(&scenario, model_path.to_path_buf())
+                let camera = CameraPerception::new(&scenario, detector)
                     .map_err(|e| RunnerError::Camera(Box::new(e)))?;
                 Some(Arc::new(camera))
             }
