@@ -2,105 +2,18 @@
 //! cancellation, reports, JUnit, and `twincell merge` through the binary.
 
 mod common;
-use common::twincell;
+use common::fake_cell::FakeCell;
+use common::{path_str, read, report, twincell, without_timing};
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::time::Duration;
 
 use serde_json::Value;
 use twincell::batch::{
-    BatchPlan, DecisionRecord, FailureReason, Outcome, PartRecord, Perception, Shard, TrialRecord,
-    TrialRunner, TrialTiming, merge_shards, run_batch, trial_seed,
+    BatchPlan, FailureReason, Outcome, Perception, Shard, TrialRecord, TrialRunner, merge_shards,
+    run_batch, trial_seed,
 };
-use twincell::rng::SimRng;
-
-/// A cell whose outcome is a function of the seed; optionally slow, panicky or cancelling.
-#[derive(Default)]
-struct FakeCell {
-    /// Sleep a seed-dependent few ms, so trials finish out of index order.
-    sleepy: bool,
-    /// Panic in this trial.
-    panic_on: Option<u32>,
-    /// Set this flag when this trial ends (so `k` trials ran when the flag is `k - 1`).
-    cancel_after: Option<(u32, Arc<AtomicBool>)>,
-}
-
-const REASONS: [FailureReason; 4] = [
-    FailureReason::Slipped,
-    FailureReason::NotDetected,
-    FailureReason::WrongBin,
-    FailureReason::Timeout,
-];
-
-impl TrialRunner for FakeCell {
-    fn run_trial(&self, index: u32, seed: u64) -> TrialRecord {
-        let mut rng = SimRng::new(seed);
-        if self.sleepy {
-            std::thread::sleep(Duration::from_millis(rng.below(6)));
-        }
-        if self.panic_on == Some(index) {
-            panic!("gripper <jammed> & \"stuck\" in trial {index}");
-        }
-        let success = rng.uniform() < 0.75;
-        let reason = REASONS[rng.below(4) as usize];
-        let mut record = if success {
-            let mut r = TrialRecord::failed(index, seed, reason, "");
-            r.outcome = Outcome::Success;
-            r.failure = None;
-            r.detail = None;
-            r
-        } else {
-            TrialRecord::failed(index, seed, reason, format!("state <carry> & 'x' {seed}"))
-        };
-        let types = ["hub", "flange", "sleeve"];
-        let true_type = types[rng.below(3) as usize];
-        let true_roundness_mm = rng.range(0.0, 0.2);
-        let truly_acceptable = true_roundness_mm < 0.1;
-        record.part = Some(PartRecord {
-            part_type: true_type.to_owned(),
-            true_roundness_mm,
-            true_bore_diameter_mm: rng.range(18.0, 30.0),
-            truly_acceptable,
-            clear_cut: true,
-            correct_bin: true_type.to_owned(),
-        });
-        let measured_roundness = true_roundness_mm + 0.01 * rng.normal();
-        record.decision = Some(DecisionRecord {
-            detected_type: if rng.uniform() < 0.9 {
-                true_type
-            } else {
-                "sleeve"
-            }
-            .to_owned(),
-            measured_roundness_mm: Some(measured_roundness),
-            measured_bore_diameter_mm: Some(20.0 + 0.02 * rng.normal()),
-            accept: measured_roundness < 0.1,
-            bin: true_type.to_owned(),
-            note: None,
-        });
-        record.placed_bin = success.then(|| true_type.to_owned());
-        record.distractor_touched = rng.uniform() < 0.1;
-        record.distractor_displacement_mm = rng.range(0.0, 3.0);
-        record.cycle_time_s = rng.range(6.0, 9.0);
-        record.sim_time_s = record.cycle_time_s + 2.0;
-        record.timing = TrialTiming {
-            wall_ms: 0.0,
-            physics_ms: 1.5,
-            render_ms: 0.5,
-            detect_ms: 0.25,
-            metrology_ms: 0.125,
-            planning_ms: 0.75,
-        };
-        if let Some((after, flag)) = &self.cancel_after
-            && *after == index
-        {
-            flag.store(true, Ordering::SeqCst);
-        }
-        record
-    }
-}
 
 fn plan(trials: u32, jobs: usize, shard: Option<Shard>) -> BatchPlan {
     BatchPlan {
@@ -114,36 +27,13 @@ fn plan(trials: u32, jobs: usize, shard: Option<Shard>) -> BatchPlan {
     }
 }
 
+/// `name` under this crate's temporary folder, absent: the batch creates it.
 fn out_dir(name: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
-        .join("batch")
-        .join(name);
-    let _ = std::fs::remove_dir_all(&dir);
-    dir
+    common::absent_dir("batch", name)
 }
 
 fn run(cell: &FakeCell, plan: &BatchPlan, dir: &Path) -> twincell::batch::BatchSummary {
     run_batch(cell, plan, dir, &AtomicBool::new(false), false).expect("batch runs")
-}
-
-fn read(path: &Path) -> String {
-    std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
-}
-
-/// trials.jsonl with every `timing` field removed, one line per trial.
-fn without_timing(dir: &Path) -> Vec<String> {
-    read(&dir.join("trials.jsonl"))
-        .lines()
-        .map(|line| {
-            let mut value: Value = serde_json::from_str(line).expect("JSON line");
-            value.as_object_mut().expect("object").remove("timing");
-            value.to_string()
-        })
-        .collect()
-}
-
-fn report(dir: &Path) -> Value {
-    serde_json::from_str(&read(&dir.join("report.json"))).expect("report JSON")
 }
 
 #[test]
@@ -183,11 +73,10 @@ fn trials_are_identical_whatever_the_jobs_or_shards() {
     assert_eq!(without_timing(&merged), expected);
 
     // The reports agree too, wall-clock figures aside.
-    let strip = |mut v: Value| {
-        v.as_object_mut().expect("object").remove("timing");
-        v
-    };
-    assert_eq!(strip(report(&merged)), strip(report(&one)));
+    assert_eq!(
+        common::report_without_timing(&merged),
+        common::report_without_timing(&one)
+    );
     assert_eq!(
         report(&shards[0])["shard"],
         serde_json::json!({"index": 0, "count": 2})
@@ -406,10 +295,6 @@ fn shard_pair(name: &str, n: u32) -> (PathBuf, PathBuf) {
         &b,
     );
     (a, b)
-}
-
-fn path_str(path: &Path) -> &str {
-    path.to_str().expect("UTF-8 path")
 }
 
 #[test]

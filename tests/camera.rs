@@ -4,6 +4,8 @@
 //! GPU) and fail, naming the problem, when there is none: they never skip.
 //! Regenerate the golden images with `TWINCELL_UPDATE_GOLDEN=1 cargo test --release --test camera`.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 
 use image::RgbImage;
@@ -13,14 +15,6 @@ use twincell::perception::calibration::MeasureOnPlane;
 use twincell::render::dataset::{self, image_stem, is_val};
 use twincell::render::{CameraRig, ObjectKind, Renderer, RendererOptions, Scene, Shot};
 use twincell::scenario::{Scenario, SensorSection};
-
-fn smoke() -> Scenario {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/smoke.toml");
-    match Scenario::load(&path) {
-        Ok(s) => s,
-        Err(e) => panic!("{e}"),
-    }
-}
 
 fn renderer(options: RendererOptions) -> Renderer {
     match Renderer::new(options) {
@@ -43,7 +37,7 @@ fn shot(scenario: &Scenario, rig: &CameraRig, sensor: &SensorSection, index: u64
 /// for every part type at nine places across the field of view.
 #[test]
 fn projected_bore_centre_matches_the_rendered_bore_across_the_field_of_view() {
-    let scenario = smoke();
+    let scenario = common::scenario("smoke.toml");
     let Ok(rig) = CameraRig::from_scenario(&scenario) else {
         panic!("camera");
     };
@@ -116,7 +110,7 @@ fn projected_bore_centre_matches_the_rendered_bore_across_the_field_of_view() {
 }
 
 fn golden_dir() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/golden")
+    common::root().join("tests/golden")
 }
 
 /// Compares with a golden image: a pixel differs when a channel is off by more than 8 levels;
@@ -165,7 +159,7 @@ fn golden_sensor(scenario: &Scenario) -> SensorSection {
 
 #[test]
 fn golden_pick_station_640x480() {
-    let scenario = smoke();
+    let scenario = common::scenario("smoke.toml");
     let Ok(rig) = CameraRig::from_scenario(&scenario) else {
         panic!("camera");
     };
@@ -182,7 +176,7 @@ fn golden_pick_station_640x480() {
 
 #[test]
 fn golden_pick_station_1280x960() {
-    let scenario = smoke();
+    let scenario = common::scenario("smoke.toml");
     let Ok(rig) = CameraRig::from_scenario(&scenario) else {
         panic!("camera");
     };
@@ -227,14 +221,14 @@ fn read_tree(dir: &Path) -> Vec<(PathBuf, Vec<u8>)> {
 /// of that object alone.
 #[test]
 fn thousand_image_dataset_is_deterministic_and_boxes_hold_their_silhouettes() {
-    let scenario = smoke();
+    let scenario = common::scenario("smoke.toml");
     let Ok(rig) = CameraRig::from_scenario(&scenario) else {
         panic!("camera");
     };
     // Reduced resolution keeps the test to a few seconds per hundred images; same field of view.
     let rig = rig.with_resolution(320, 240);
     let count: u64 = 1000;
-    let root = std::env::temp_dir().join(format!("twincell_dataset_{}", std::process::id()));
+    let root = common::out_dir("camera", "dataset");
     let (a, b) = (root.join("a"), root.join("b"));
     let mut renderer = renderer(RendererOptions::default());
     for dir in [&a, &b] {
@@ -359,10 +353,8 @@ fn thousand_image_dataset_is_deterministic_and_boxes_hold_their_silhouettes() {
 
 #[test]
 fn a_bad_camera_setting_names_its_key() {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/smoke.toml");
-    let Ok(text) = std::fs::read_to_string(&path) else {
-        panic!("no smoke scenario");
-    };
+    let path = common::scenario_path("smoke.toml");
+    let text = common::read(&path);
     for (extra, key) in [
         ("[camera]\nmsaa_samples = 3\n", "camera.msaa_samples"),
         (
@@ -397,7 +389,7 @@ fn metrology_errors(
     height_px: u32,
 ) -> (Vec<f64>, Vec<f64>, usize) {
     use twincell::perception::roundness::DEFAULT_MAX_UPR;
-    let scenario = smoke();
+    let scenario = common::scenario("smoke.toml");
     let Ok(rig) = CameraRig::from_scenario(&scenario) else {
         panic!("camera");
     };
@@ -487,7 +479,7 @@ fn rendered_bores_measure_to_truth_within_hundredths_of_a_millimetre() {
     );
     assert_metrology(
         "scenario realism",
-        &smoke().sensor,
+        &common::scenario("smoke.toml").sensor,
         (1280, 960),
         (0.05, 0.1),
     );
@@ -500,7 +492,7 @@ fn rendered_bores_measure_to_truth_within_hundredths_of_a_millimetre() {
 fn rendered_bores_at_640x480_measure_to_a_tenth_of_a_millimetre() {
     assert_metrology(
         "scenario realism",
-        &smoke().sensor,
+        &common::scenario("smoke.toml").sensor,
         (640, 480),
         (0.15, 0.25),
     );
@@ -509,7 +501,7 @@ fn rendered_bores_at_640x480_measure_to_a_tenth_of_a_millimetre() {
 /// The arm at its home pose stays out of the camera's view of the pick station.
 #[test]
 fn the_arm_at_home_does_not_occlude_the_pick_station() {
-    let scenario = smoke();
+    let scenario = common::scenario("smoke.toml");
     let Ok(rig) = CameraRig::from_scenario(&scenario) else {
         panic!("camera");
     };
@@ -546,7 +538,7 @@ fn the_arm_at_home_does_not_occlude_the_pick_station() {
 /// images the shared target held before.
 #[test]
 fn images_of_many_sizes_share_a_few_targets_and_come_out_the_same() {
-    let scenario = smoke();
+    let scenario = common::scenario("smoke.toml");
     let Ok(rig) = CameraRig::from_scenario(&scenario) else {
         panic!("camera");
     };

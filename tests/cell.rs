@@ -1,33 +1,26 @@
 //! The physical cell: scenario validation, the belt and photo-eye, and deterministic batches.
 
-use std::path::{Path, PathBuf};
-use std::process::Command;
+mod common;
+use common::{out_dir, paper_50, read, scenario_path, twincell, without_timing};
 
+use std::path::{Path, PathBuf};
+
+use serde_json::Value;
 use twincell::cell::{Cell, CellModel};
 use twincell::rng::SimRng;
 use twincell::scenario::Scenario;
 
-fn scenario_path(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("scenarios")
-        .join(name)
-}
-
-fn paper() -> Scenario {
-    Scenario::load(&scenario_path("paper_50.toml")).expect("paper_50 loads")
-}
-
 #[test]
 fn shipped_scenarios_validate() {
     for name in ["paper_50.toml", "smoke.toml", "stream.toml"] {
-        let scenario = Scenario::load(&scenario_path(name)).expect(name);
+        let scenario = common::scenario(name);
         assert!(scenario.part_types.len() >= 6);
         assert!(scenario.bins.iter().any(|b| b.reject));
     }
 }
 
 fn error_for(edit: impl Fn(&str) -> String) -> String {
-    let text = std::fs::read_to_string(scenario_path("paper_50.toml")).expect("read");
+    let text = read(&scenario_path("paper_50.toml"));
     let edited = edit(&text);
     match Scenario::from_toml(&edited, Path::new("edited.toml")) {
         Ok(_) => panic!("edited scenario was accepted"),
@@ -68,7 +61,7 @@ fn bad_scenarios_name_the_file_key_and_reason() {
 
 #[test]
 fn belt_carries_the_part_to_the_photo_eye_by_friction() {
-    let scenario = paper();
+    let scenario = paper_50();
     let mut rng = SimRng::new(3);
     let mut cell = Cell::build(
         &CellModel::with_urdf(scenario.clone(), None).expect("model"),
@@ -133,7 +126,7 @@ fn belt_carries_the_part_to_the_photo_eye_by_friction() {
 /// degree or two, seen obliquely, reads as a tenth of a millimetre of roundness).
 #[test]
 fn every_part_type_stands_still_and_upright_on_the_stopped_belt() {
-    let base = paper();
+    let base = paper_50();
     for part_type in &base.part_types {
         let mut scenario = base.clone();
         scenario.part_types = vec![part_type.clone()];
@@ -165,42 +158,24 @@ fn every_part_type_stands_still_and_upright_on_the_stopped_belt() {
     }
 }
 
-fn run_cli(args: &[&str]) -> (i32, String) {
-    let output = Command::new(env!("CARGO_BIN_EXE_twincell"))
-        .args(args)
-        .output()
-        .expect("binary runs");
-    (
-        output.status.code().unwrap_or(-1),
-        String::from_utf8_lossy(&output.stderr).into_owned(),
-    )
-}
-
-/// trials.jsonl with the wall-clock `timing` objects removed.
-fn without_timing(path: &Path) -> Vec<serde_json::Value> {
-    std::fs::read_to_string(path)
-        .expect("trials.jsonl")
-        .lines()
-        .map(|line| {
-            let mut value: serde_json::Value = serde_json::from_str(line).expect("JSON line");
-            if let Some(object) = value.as_object_mut() {
-                object.remove("timing");
-            }
-            value
-        })
+/// `trials.jsonl` in `dir` without its wall-clock `timing` objects, as JSON values.
+fn records_without_timing(dir: &Path) -> Vec<Value> {
+    without_timing(dir)
+        .iter()
+        .map(|line| serde_json::from_str(line).expect("JSON line"))
         .collect()
 }
 
 #[test]
 fn run_is_deterministic_across_jobs() {
-    let dir = std::env::temp_dir().join(format!("twincell-cell-det-{}", std::process::id()));
+    let dir = out_dir("cell", "det");
     let scenario = scenario_path("smoke.toml");
     let scenario = scenario.to_str().expect("utf-8 path");
     let mut outputs = Vec::new();
     for jobs in ["1", "2"] {
         let out = dir.join(format!("jobs{jobs}"));
         let out_str = out.to_str().expect("utf-8 path");
-        let (code, stderr) = run_cli(&[
+        let (code, _, stderr) = twincell(&[
             "run",
             scenario,
             "--perception",
@@ -212,25 +187,23 @@ fn run_is_deterministic_across_jobs() {
             "--json",
         ]);
         assert!(code == 0 || code == 1, "exit {code}: {stderr}");
-        outputs.push(without_timing(&out.join("trials.jsonl")));
+        outputs.push(records_without_timing(&out));
     }
     assert_eq!(outputs[0].len(), 4);
     assert_eq!(outputs[0], outputs[1]);
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
 fn bad_scenario_exits_with_code_2() {
-    let dir = std::env::temp_dir().join(format!("twincell-cell-bad-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).expect("temp dir");
-    let text = std::fs::read_to_string(scenario_path("paper_50.toml")).expect("read");
+    let dir = out_dir("cell", "bad");
+    let text = read(&scenario_path("paper_50.toml"));
     let bad = dir.join("bad.toml");
     std::fs::write(
         &bad,
         text.replace("length_m = 1.6", "length_m = 1.6\nlenght_m = 2.0"),
     )
     .expect("write");
-    let (code, stderr) = run_cli(&[
+    let (code, _, stderr) = twincell(&[
         "run",
         bad.to_str().expect("utf-8"),
         "--perception",
@@ -241,7 +214,6 @@ fn bad_scenario_exits_with_code_2() {
         stderr.contains("bad.toml") && stderr.contains("lenght_m"),
         "{stderr}"
     );
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
@@ -249,7 +221,7 @@ fn grasp_holds_by_friction_and_a_weak_grip_lets_the_part_slip() {
     use twincell::batch::{FailureReason, Outcome, Perception, TrialRunner, trial_seed};
     use twincell::task::CellTrialRunner;
     let path = scenario_path("paper_50.toml");
-    let scenario = Scenario::load(&path).expect("loads");
+    let scenario = paper_50();
     let seed = trial_seed(scenario.seed, 1);
     let mut runner =
         CellTrialRunner::new(scenario, &path, Perception::Oracle).expect("runner builds");
@@ -272,12 +244,8 @@ fn grasp_holds_by_friction_and_a_weak_grip_lets_the_part_slip() {
 
 /// The stream scenario shortened to `parts` parts and `bottles` bottles, written to `dir`.
 fn short_stream(dir: &Path, parts: u32, bottles: u32) -> PathBuf {
-    std::fs::create_dir_all(dir).expect("temp dir");
-    let text = std::fs::read_to_string(scenario_path("stream.toml")).expect("read");
     // The copy extends the shipped paper_50.toml wherever it is written.
-    let base = format!("extends = {:?}", scenario_path("paper_50.toml"));
-    let text = text
-        .replace("extends = \"paper_50.toml\"", &base)
+    let text = common::portable_text("stream.toml")
         .replace("parts_per_trial = 8", &format!("parts_per_trial = {parts}"))
         .replace("bottles = 2", &format!("bottles = {bottles}"));
     let path = dir.join("short_stream.toml");
@@ -289,7 +257,7 @@ fn short_stream(dir: &Path, parts: u32, bottles: u32) -> PathBuf {
 fn a_stream_sorts_every_part_and_the_belt_stops_for_each_item() {
     use twincell::batch::{Outcome, Perception, TrialRunner, trial_seed};
     use twincell::task::CellTrialRunner;
-    let dir = std::env::temp_dir().join(format!("twincell-stream-{}", std::process::id()));
+    let dir = out_dir("cell", "stream");
     let path = short_stream(&dir, 3, 2);
     let scenario = Scenario::load(&path).expect("loads");
     let runner = CellTrialRunner::new(scenario.clone(), &path, Perception::Oracle).expect("runner");
@@ -308,12 +276,11 @@ fn a_stream_sorts_every_part_and_the_belt_stops_for_each_item() {
     // One stop per part and per bottle that reached the photo-eye: the belt restarted each time.
     assert_eq!(stream.belt_stops, 3 + stream.bottles_passed);
     assert!(!record.distractor_touched && !record.distractor_picked);
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
 fn a_stream_is_deterministic_across_jobs_and_shards() {
-    let dir = std::env::temp_dir().join(format!("twincell-stream-det-{}", std::process::id()));
+    let dir = out_dir("cell", "stream-det");
     let path = short_stream(&dir, 2, 1);
     let scenario = path.to_str().expect("utf-8 path");
     let run = |name: &str, extra: &[&str]| {
@@ -322,9 +289,9 @@ fn a_stream_is_deterministic_across_jobs_and_shards() {
         let mut args = vec!["run", scenario, "--perception", "oracle", "--trials", "2"];
         args.extend_from_slice(extra);
         args.extend_from_slice(&["--out", &out_str, "--json"]);
-        let (code, stderr) = run_cli(&args);
+        let (code, _, stderr) = twincell(&args);
         assert!(code == 0 || code == 1, "exit {code}: {stderr}");
-        without_timing(&out.join("trials.jsonl"))
+        records_without_timing(&out)
     };
     let one = run("jobs1", &["--jobs", "1"]);
     let two = run("jobs2", &["--jobs", "2"]);
@@ -335,12 +302,11 @@ fn a_stream_is_deterministic_across_jobs_and_shards() {
     shards.extend(run("shard1", &["--shard", "1/2", "--jobs", "1"]));
     shards.sort_by_key(|r| r["trial"].as_u64());
     assert_eq!(one, shards);
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
 fn a_bad_stream_section_names_the_key() {
-    let stream = std::fs::read_to_string(scenario_path("stream.toml")).expect("read");
+    let stream = read(&scenario_path("stream.toml"));
     let path = &scenario_path("stream.toml");
     let tight = Scenario::from_toml(&stream.replace("spacing_m = 0.3", "spacing_m = 0.05"), path)
         .expect_err("too tight");
@@ -352,7 +318,7 @@ fn a_bad_stream_section_names_the_key() {
         with_bottle.to_string().contains("bottle.enabled"),
         "{with_bottle}"
     );
-    let paper = std::fs::read_to_string(scenario_path("paper_50.toml")).expect("read");
+    let paper = read(&scenario_path("paper_50.toml"));
     let stray = Scenario::from_toml(&format!("{paper}\n[stream]\nbottles = 3\n"), path)
         .expect_err("stream section without a stream");
     assert!(stray.to_string().contains("stream"), "{stray}");

@@ -3,22 +3,12 @@
 //! poses fitted to their boxes and bores measured inside their boxes agree with the truth.
 
 mod common;
-
-use std::path::Path;
+use common::{paper_50, path_str};
 
 use nalgebra::{Point3, Vector3};
 use twincell::perception::{BoreDetector, BoreDetectorParams};
 use twincell::render::{CameraRig, Renderer, RendererOptions, Shot};
-use twincell::scenario::Scenario;
 use twincell::station::{BottleFitter, measure_in_window, part_window};
-
-fn paper_50() -> Scenario {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/paper_50.toml");
-    match Scenario::load(&path) {
-        Ok(s) => s,
-        Err(e) => panic!("{e}"),
-    }
-}
 
 /// A truth box (inclusive pixel indices) as a detector's box (continuous pixel extent).
 fn continuous(bbox_px: [u32; 4]) -> [f64; 4] {
@@ -184,16 +174,20 @@ fn bores_measured_in_their_areas_of_interest_locate_size_and_grade_the_part() {
 /// Runs `scenarios/NAME` through `twincell run ... --jobs 2 --json` with `extra` arguments in
 /// a scratch directory; returns the report, after checking that the run passed.
 fn run_report(name: &str, extra: &[&str]) -> serde_json::Value {
-    let out = std::env::temp_dir().join(format!("twincell-{name}-{}", std::process::id()));
-    let scenario = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("scenarios")
-        .join(name);
-    let (scenario, out_arg) = (scenario.to_string_lossy(), out.to_string_lossy());
-    let mut args = vec!["run", &scenario, "--out", &out_arg, "--jobs", "2", "--json"];
+    let out = common::out_dir("closed_loop", name);
+    let scenario = common::scenario_path(name);
+    let mut args = vec![
+        "run",
+        path_str(&scenario),
+        "--out",
+        path_str(&out),
+        "--jobs",
+        "2",
+        "--json",
+    ];
     args.extend_from_slice(extra);
     let (code, stdout, stderr) = common::twincell(&args);
     assert_eq!(code, 0, "{stderr}");
-    let _ = std::fs::remove_dir_all(&out);
     match serde_json::from_str(&stdout) {
         Ok(v) => v,
         Err(e) => panic!("report: {e}: {stdout}"),

@@ -2,7 +2,8 @@
 //! first within 10 mm of the part; every bottle is in the registry, rendered and detected, and
 //! the records come out.
 
-use std::path::Path;
+mod common;
+
 use std::sync::{Arc, Mutex};
 
 use nalgebra::Vector3;
@@ -95,8 +96,8 @@ impl TrialObserver for TrialWatch {
 
 #[test]
 fn a_clutter_trial_builds_renders_and_detects_every_bottle() {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/suite/clutter.toml");
-    let scenario = Scenario::load(&path).expect("clutter.toml");
+    let path = common::scenario_path("suite/clutter.toml");
+    let scenario = common::scenario("suite/clutter.toml");
     let mut runner =
         CellTrialRunner::new(scenario.clone(), &path, Perception::Camera).expect("runner");
     let watch = Arc::new(Watch::default());

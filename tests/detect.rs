@@ -5,8 +5,9 @@
 //! from the seed. Renders on whatever adapter wgpu finds (the software one without a GPU) and
 //! fails, naming the problem, when there is none.
 
+mod common;
+
 use std::collections::BTreeSet;
-use std::path::Path;
 
 use twincell::detect::{Detection, Detector, DetectorModel};
 use twincell::render::{CameraRig, ObjectTruth, Renderer, RendererOptions, Shot};
@@ -15,21 +16,17 @@ use twincell::scenario::{Scenario, SensorSection};
 const SEED: u64 = 4242;
 const IMAGES_PER_SENSOR: u64 = 12;
 
-/// `file` (relative to the project) at `seed`, at the detector's resolution, as `twincell
-/// dataset --resolution 640 480` renders it.
-fn scenario_at(file: &str, seed: u64) -> Scenario {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join(file);
-    let mut s = match Scenario::load(&path) {
-        Ok(s) => s,
-        Err(e) => panic!("{e}"),
-    };
+/// `scenarios/NAME` at `seed`, at the detector's resolution, as `twincell dataset
+/// --resolution 640 480` renders it.
+fn scenario_at(name: &str, seed: u64) -> Scenario {
+    let mut s = common::scenario(name);
     s.seed = seed;
     s.camera.resolution_px = [640, 480];
     s
 }
 
 fn scenario() -> Scenario {
-    scenario_at("scenarios/paper_50.toml", SEED)
+    scenario_at("paper_50.toml", SEED)
 }
 
 /// Strong noise, stains, dirt and badly balanced light (make_data.sh's harsh sets).
@@ -202,7 +199,7 @@ fn shipped_detector_finds_the_rendered_parts_and_bottles() {
 /// cases.
 #[test]
 fn shipped_detector_knows_the_second_catalogue() {
-    let scenario = scenario_at("scenarios/suite/catalogue_b.toml", 4243);
+    let scenario = scenario_at("suite/catalogue_b.toml", 4243);
     let tally = tally_renders(&scenario, 18);
     assert_eq!(
         tally.part_types.len(),
@@ -265,8 +262,7 @@ fn detection_repeats_exactly() {
 /// A model card that is missing or names a bad threshold is refused, naming file and field.
 #[test]
 fn bad_model_card_is_refused_with_its_file_and_field() {
-    let dir = std::env::temp_dir().join(format!("twincell-detect-card-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap_or_else(|e| panic!("{e}"));
+    let dir = common::out_dir("detect", "card");
     let onnx = dir.join("net.onnx");
     let shipped =
         std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/models/detector.onnx");
@@ -283,5 +279,4 @@ fn bad_model_card_is_refused_with_its_file_and_field() {
         panic!("loaded a bad card");
     };
     assert!(e.to_string().contains("score_threshold"), "{e}");
-    let _ = std::fs::remove_dir_all(&dir);
 }

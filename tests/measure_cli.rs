@@ -11,10 +11,7 @@ use twincell::perception::synthetic::{BoreShape, Illumination, Noise, Scene, Tub
 
 /// A fresh directory for this test's files.
 fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("twincell-measure-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("scratch dir");
-    dir
+    common::out_dir("measure_cli", name)
 }
 
 /// Two tubes on a grey belt: a thick wall (ratio 2.5) round, a thin one (ratio 1.2) elliptical

@@ -2,7 +2,7 @@
 //! trial of paper_50 (seed 731, oracle perception so that the test needs no renderer), with the
 //! joint speeds taken from the simulated joint angles step by step, not from the plan.
 
-use std::path::Path;
+mod common;
 
 use twincell::batch::{Outcome, Perception, TrialRecord, TrialRunner, trial_seed};
 use twincell::scenario::Scenario;
@@ -14,8 +14,7 @@ const MAX_GRIP_DRIFT_MM: f64 = 5.0;
 const MAX_MEAN_CYCLE_S: f64 = 8.0;
 
 fn all_trials() -> (Scenario, Vec<TrialRecord>) {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/paper_50.toml");
-    let scenario = Scenario::load(&path).expect("paper_50 loads");
+    let scenario = common::paper_50();
     let trials = scenario.trials;
     run_trials(scenario, trials)
 }
@@ -23,7 +22,7 @@ fn all_trials() -> (Scenario, Vec<TrialRecord>) {
 /// The first `trials` trials of `scenario` (read from paper_50's path), oracle perception, on
 /// two threads.
 fn run_trials(scenario: Scenario, trials: u32) -> (Scenario, Vec<TrialRecord>) {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/paper_50.toml");
+    let path = common::scenario_path("paper_50.toml");
     let runner =
         CellTrialRunner::new(scenario.clone(), &path, Perception::Oracle).expect("runner builds");
     let (runner, seed) = (&runner, scenario.seed);
@@ -104,8 +103,7 @@ fn every_trial_keeps_the_joints_within_their_limits_and_the_part_in_the_jaws() {
 /// (it is friction, not a weld, either way).
 #[test]
 fn pad_stiction_keeps_a_carried_part_from_creeping() {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/paper_50.toml");
-    let scenario = Scenario::load(&path).expect("paper_50 loads");
+    let scenario = common::paper_50();
     let mut plain = scenario.clone();
     plain.gripper.pad_preslide_mm = 0.0;
     let largest = |records: &[TrialRecord]| {

@@ -11,7 +11,7 @@ mod common;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use common::twincell;
+use common::{root, twincell, without_timing};
 use twincell::batch::{FailureReason, TrialRecord};
 use twincell::cell::{Cell, CellModel};
 use twincell::perception::BoreDetector;
@@ -23,15 +23,8 @@ use twincell::scenario::{Scenario, SensorSection};
 use twincell::task::TrialObserverFactory;
 use twincell::task::{BoreView, CellView, DetectionView, PerceptionFrame};
 
-fn root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
-
 fn out_dir(name: &str) -> PathBuf {
-    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("record-{name}"));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("temp dir");
-    dir
+    common::out_dir("record", name)
 }
 
 /// Runs `scripts/verify_rrd.sh` with `args`; panics with its output when it fails.
@@ -52,21 +45,9 @@ fn verify(args: &[&str]) {
     );
 }
 
-/// trials.jsonl with every `timing` field (wall-clock measurements) removed.
-fn trials_without_timing(dir: &Path) -> Vec<String> {
-    let text = std::fs::read_to_string(dir.join("trials.jsonl")).expect("trials.jsonl");
-    text.lines()
-        .map(|line| {
-            let mut value: serde_json::Value = serde_json::from_str(line).expect("json");
-            value.as_object_mut().expect("object").remove("timing");
-            value.to_string()
-        })
-        .collect()
-}
-
 /// Runs two smoke trials with oracle perception, `extra` appended; asserts success.
 fn run_smoke(out: &Path, extra: &[&str]) {
-    let scenario = root().join("scenarios/smoke.toml");
+    let scenario = common::scenario_path("smoke.toml");
     let mut args = vec![
         "run",
         scenario.to_str().expect("utf-8 path"),
@@ -99,10 +80,10 @@ fn recording_verifies_and_changes_no_record_for_any_jobs() {
         &["--jobs", "2", "--record", two_rrd.to_str().expect("utf-8")],
     );
 
-    let expected = trials_without_timing(&plain);
+    let expected = without_timing(&plain);
     assert_eq!(expected.len(), 2);
-    assert_eq!(trials_without_timing(&one), expected, "--record --jobs 1");
-    assert_eq!(trials_without_timing(&two), expected, "--record --jobs 2");
+    assert_eq!(without_timing(&one), expected, "--record --jobs 1");
+    assert_eq!(without_timing(&two), expected, "--record --jobs 2");
 
     let size = std::fs::metadata(&one_rrd)
         .expect("recording written")
@@ -155,7 +136,7 @@ fn recording_verifies_and_changes_no_record_for_any_jobs() {
 #[test]
 fn bad_record_paths_are_bad_input() {
     let out = out_dir("bad");
-    let scenario = root().join("scenarios/smoke.toml");
+    let scenario = common::scenario_path("smoke.toml");
     let scenario = scenario.to_str().expect("utf-8");
     let out_arg = out.to_str().expect("utf-8");
     let run_recording_to = |record: &str| {
@@ -242,7 +223,7 @@ fn perception_frame(scenario: &Scenario) -> PerceptionFrame {
 
 #[test]
 fn perception_panel_is_recorded() {
-    let scenario = Scenario::load(&root().join("scenarios/smoke.toml")).expect("smoke");
+    let scenario = common::scenario("smoke.toml");
     let frame = perception_frame(&scenario);
     assert!(!frame.bores.is_empty(), "the detector found no bore");
     assert!(frame.detections.len() >= 2, "the part and the bottle");

@@ -8,7 +8,7 @@
 //! `TWINCELL_UPDATE_SCREENSHOT=1 cargo test --release --test report_page`.
 
 mod common;
-use common::twincell;
+use common::{path_str, twincell};
 
 use std::fs;
 use std::path::{Path, PathBuf};
@@ -16,22 +16,14 @@ use std::process::Command;
 
 use serde_json::Value;
 
-const ROOT: &str = env!("CARGO_MANIFEST_DIR");
-
+/// A suite scenario's path.
 fn scenario(name: &str) -> String {
-    format!("{ROOT}/scenarios/suite/{name}.toml")
+    path_str(&common::scenario_path(&format!("suite/{name}.toml"))).to_owned()
 }
 
+/// `name` under this crate's temporary folder, absent: the command creates it.
 fn out_dir(name: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
-        .join("report_page")
-        .join(name);
-    let _ = fs::remove_dir_all(&dir);
-    dir
-}
-
-fn s(path: &Path) -> &str {
-    path.to_str().expect("UTF-8 path")
+    common::absent_dir("report_page", name)
 }
 
 /// Runs the binary and checks it did not refuse its input (exit 2) or crash.
@@ -87,7 +79,7 @@ fn failed_trials_frames_are_saved_the_same_on_any_jobs_shards_and_resume() {
     // A stale frame from an earlier batch in the directory must not survive a fresh run.
     fs::create_dir_all(one.join("images")).expect("dir");
     fs::write(one.join("images/trial-0099.jpg"), b"stale").expect("stale");
-    run_without_zone(&["--trials", "3", "--jobs", "1", "--out", s(&one)]);
+    run_without_zone(&["--trials", "3", "--jobs", "1", "--out", path_str(&one)]);
     let frames = images(&one);
     let names: Vec<&str> = frames.iter().map(|(n, _)| n.as_str()).collect();
     let failed = records(&one)
@@ -110,21 +102,41 @@ fn failed_trials_frames_are_saved_the_same_on_any_jobs_shards_and_resume() {
     assert_eq!(html.matches("src=\"data:image/jpeg;base64,").count(), 3);
 
     let two = out_dir("jobs2");
-    run_without_zone(&["--trials", "3", "--jobs", "2", "--out", s(&two)]);
+    run_without_zone(&["--trials", "3", "--jobs", "2", "--out", path_str(&two)]);
     assert_eq!(images(&two), frames, "frames differ between 1 and 2 jobs");
 
     let (shard0, shard1, merged) = (out_dir("shard0"), out_dir("shard1"), out_dir("merged"));
-    run_without_zone(&["--trials", "3", "--shard", "0/2", "--out", s(&shard0)]);
-    run_without_zone(&["--trials", "3", "--shard", "1/2", "--out", s(&shard1)]);
+    run_without_zone(&[
+        "--trials",
+        "3",
+        "--shard",
+        "0/2",
+        "--out",
+        path_str(&shard0),
+    ]);
+    run_without_zone(&[
+        "--trials",
+        "3",
+        "--shard",
+        "1/2",
+        "--out",
+        path_str(&shard1),
+    ]);
     assert_eq!(images(&shard0).len() + images(&shard1).len(), 3);
-    run(&["merge", s(&shard0), s(&shard1), "--out", s(&merged)]);
+    run(&[
+        "merge",
+        path_str(&shard0),
+        path_str(&shard1),
+        "--out",
+        path_str(&merged),
+    ]);
     assert_eq!(images(&merged), frames, "merge did not carry the frames");
     let html = fs::read_to_string(merged.join("report.html")).expect("merged page");
     assert_eq!(html.matches("src=\"data:image/jpeg;base64,").count(), 3);
 
     // A batch killed after its first record: its frame stays, the rest are made again.
     let resumed = out_dir("resumed");
-    run_without_zone(&["--trials", "3", "--jobs", "1", "--out", s(&resumed)]);
+    run_without_zone(&["--trials", "3", "--jobs", "1", "--out", path_str(&resumed)]);
     let text = fs::read_to_string(resumed.join("trials.jsonl")).expect("records");
     let first = text.split_inclusive('\n').next().expect("a record");
     fs::write(resumed.join("trials.jsonl"), first).expect("truncate");
@@ -134,14 +146,21 @@ fn failed_trials_frames_are_saved_the_same_on_any_jobs_shards_and_resume() {
     for name in ["trial-0001.jpg", "trial-0002.jpg"] {
         fs::remove_file(resumed.join("images").join(name)).expect("frame");
     }
-    run_without_zone(&["--trials", "3", "--resume", s(&resumed)]);
+    run_without_zone(&["--trials", "3", "--resume", path_str(&resumed)]);
     assert_eq!(images(&resumed), frames, "resume lost or changed frames");
 }
 
 #[test]
 fn oracle_pages_say_there_is_no_camera_image() {
     let dir = out_dir("oracle");
-    run_without_zone(&["--trials", "2", "--perception", "oracle", "--out", s(&dir)]);
+    run_without_zone(&[
+        "--trials",
+        "2",
+        "--perception",
+        "oracle",
+        "--out",
+        path_str(&dir),
+    ]);
     assert!(images(&dir).is_empty());
     let html = fs::read_to_string(dir.join("report.html")).expect("page");
     assert_eq!(
@@ -170,8 +189,14 @@ fn chromium() -> String {
 /// goes to `screenshot`.
 fn load_in_chromium(page: &Path, screenshot: &Path) -> Value {
     let output = Command::new("python3")
-        .arg(format!("{ROOT}/scripts/browser_check.py"))
-        .args([chromium().as_str(), s(page), s(screenshot), "1000", "1400"])
+        .arg(common::root().join("scripts/browser_check.py"))
+        .args([
+            chromium().as_str(),
+            path_str(page),
+            path_str(screenshot),
+            "1000",
+            "1400",
+        ])
         .output()
         .expect("python3 runs");
     assert!(
@@ -196,7 +221,7 @@ fn the_page_loads_in_headless_chromium_with_every_plot_and_frame_drawn() {
         "--jobs",
         "2",
         "--out",
-        s(&dir),
+        path_str(&dir),
     ]);
     let failed = records(&dir)
         .iter()
@@ -229,7 +254,7 @@ fn the_page_loads_in_headless_chromium_with_every_plot_and_frame_drawn() {
         "the screenshot is nearly one colour: {differing} of {total} pixels differ"
     );
     if std::env::var_os("TWINCELL_UPDATE_SCREENSHOT").is_some() {
-        let target = Path::new(ROOT).join("docs/images/report.png");
+        let target = common::root().join("docs/images/report.png");
         fs::create_dir_all(target.parent().expect("docs/images")).expect("dir");
         fs::copy(&screenshot, &target).expect("copy the screenshot");
     }

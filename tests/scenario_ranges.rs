@@ -1,6 +1,8 @@
 //! Physically absurd scenario values (a belt at 1e308 m/s, a bin 1 km wide) are refused with
 //! the file, the key and the allowed range; the shipped values stay accepted.
 
+mod common;
+
 use std::path::Path;
 
 use toml::{Table, Value};
@@ -8,8 +10,7 @@ use twincell::scenario::Scenario;
 
 /// The smoke cell written out whole: the paper's file with smoke.toml's own keys.
 fn smoke() -> Table {
-    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/scenarios/paper_50.toml");
-    let text = std::fs::read_to_string(path).expect("paper_50.toml");
+    let text = common::read(&common::scenario_path("paper_50.toml"));
     let mut table: Table = toml::from_str(&text).expect("TOML");
     table.insert("name".into(), Value::String("smoke".into()));
     table.insert("seed".into(), Value::Integer(7));

@@ -3,20 +3,16 @@
 //! ramped the belt to a stop. Drawn over belt speeds from the paper's to four times it, creep
 //! speeds and every part type, without a bottle.
 
+mod common;
+
 use twincell::cell::{Cell, CellModel};
 use twincell::control::BeltDrive;
 use twincell::rng::SimRng;
-use twincell::scenario::Scenario;
-
-fn paper() -> Scenario {
-    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/scenarios/paper_50.toml");
-    Scenario::load(std::path::Path::new(path)).expect("paper_50 loads")
-}
 
 /// Runs the belt as a trial's wait does (full speed, the creep while the zone is occupied, a
 /// stop when the beam breaks); returns whether the first part still breaks the beam at rest.
 fn part_at_the_eye_after_the_stop(speed_m_s: f64, creep_m_s: f64, seed: u64) -> bool {
-    let mut scenario = paper();
+    let mut scenario = common::paper_50();
     scenario.bottle.enabled = false;
     scenario.conveyor.speed_m_s = speed_m_s;
     scenario.conveyor.creep_speed_m_s = creep_m_s;

@@ -2,40 +2,17 @@
 //! oracle mode with few trials.
 
 mod common;
-use common::twincell;
+use common::{read, report, twincell, without_timing};
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use serde_json::Value;
 
 const SMOKE: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/scenarios/smoke.toml");
 
+/// `name` under this crate's temporary folder, absent: the command creates it.
 fn out_dir(name: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
-        .join("suite")
-        .join(name);
-    let _ = std::fs::remove_dir_all(&dir);
-    dir
-}
-
-fn read(path: &Path) -> String {
-    std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
-}
-
-fn report(dir: &Path) -> Value {
-    serde_json::from_str(&read(&dir.join("report.json"))).expect("report JSON")
-}
-
-/// trials.jsonl with every `timing` field removed, one line per trial.
-fn without_timing(dir: &Path) -> Vec<String> {
-    read(&dir.join("trials.jsonl"))
-        .lines()
-        .map(|line| {
-            let mut value: Value = serde_json::from_str(line).expect("JSON line");
-            value.as_object_mut().expect("object").remove("timing");
-            value.to_string()
-        })
-        .collect()
+    common::absent_dir("suite", name)
 }
 
 fn strs(v: &[String]) -> Vec<&str> {

@@ -205,8 +205,7 @@ fn a_scenario_with_another_arm_plans_with_its_geometry_and_a_bad_one_exits_2() {
         "<origin xyz=\"0.458 0 0\" rpy=\"-3.141592653589793 0 0\"/>",
     );
     std::fs::write(dir.join("longer.urdf"), &longer).expect("writes");
-    let paper =
-        std::fs::read_to_string(common::root().join("scenarios/paper_50.toml")).expect("paper_50");
+    let paper = common::read(&common::scenario_path("paper_50.toml"));
     std::fs::write(dir.join("paper_50.toml"), &paper).expect("writes");
     let scenario = dir.join("longer.toml");
     std::fs::write(

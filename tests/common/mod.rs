@@ -1,15 +1,26 @@
 //! Helpers shared by the integration tests. Each test crate uses some of them.
 #![allow(dead_code)]
 
+pub mod fake_cell;
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use serde_json::Value;
 use twincell::scenario::Scenario;
 
-/// Runs the `twincell` binary; returns its exit code, stdout and stderr.
+/// The binary under test: cargo's, or `TWINCELL_BIN` when set (a copy taken right after the
+/// build, for machines where several checkouts share one target directory and its binary).
+pub fn bin() -> PathBuf {
+    std::env::var_os("TWINCELL_BIN").map_or_else(
+        || PathBuf::from(env!("CARGO_BIN_EXE_twincell")),
+        PathBuf::from,
+    )
+}
+
+/// Runs the binary under test ([`bin`]); returns its exit code, stdout and stderr.
 pub fn twincell(args: &[&str]) -> (i32, String, String) {
-    let output = Command::new(env!("CARGO_BIN_EXE_twincell"))
+    let output = Command::new(bin())
         .args(args)
         .output()
         .expect("binary runs");
@@ -51,6 +62,21 @@ pub fn out_dir(group: &str, name: &str) -> PathBuf {
     dir
 }
 
+/// The path `group/name` under the tests' temporary folder, removed and not created: for
+/// commands that must create their output directory themselves or find none.
+pub fn absent_dir(group: &str, name: &str) -> PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join(group)
+        .join(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    dir
+}
+
+/// A path as the `&str` a command line takes.
+pub fn path_str(path: &Path) -> &str {
+    path.to_str().expect("UTF-8 path")
+}
+
 /// A file's text.
 pub fn read(path: &Path) -> String {
     std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
@@ -71,6 +97,31 @@ pub fn without_timing(dir: &Path) -> Vec<String> {
             value.to_string()
         })
         .collect()
+}
+
+/// `DIR/trials.jsonl` with each line's `"timing":{...}` object cut out and its bytes otherwise
+/// untouched, for comparisons byte for byte.
+pub fn trials_text_without_timing(dir: &Path) -> String {
+    let text = read(&dir.join("trials.jsonl"));
+    let mut out = String::new();
+    for line in text.split_inclusive('\n') {
+        let start = line.find(",\"timing\":{").expect("a timing object");
+        let end = start + line[start..].find('}').expect("its end") + 1;
+        out.push_str(&line[..start]);
+        out.push_str(&line[end..]);
+    }
+    out
+}
+
+/// `DIR/report.json` without its wall-clock `timing`.
+pub fn report_without_timing(dir: &Path) -> Value {
+    let mut report = report(dir);
+    report
+        .as_object_mut()
+        .expect("object")
+        .remove("timing")
+        .expect("timing");
+    report
 }
 
 /// A shipped scenario's text, its `extends` made absolute so that a copy written anywhere
