@@ -56,19 +56,17 @@ impl Phase {
         Phase::Pass,
     ];
 
-    /// The pick cycle, in order: from a stopped belt to the arm back home.
-    pub const PICK_CYCLE: [Phase; 10] = [
-        Phase::Perceive,
-        Phase::Plan,
-        Phase::Approach,
-        Phase::Descend,
-        Phase::Grasp,
-        Phase::Lift,
-        Phase::Transport,
-        Phase::Place,
-        Phase::Release,
-        Phase::Retreat,
-    ];
+    /// The pick cycle, in order: from a stopped belt to the arm back home (every phase but
+    /// waiting and passing).
+    pub const PICK_CYCLE: [Phase; PHASE_COUNT - 2] = {
+        let mut cycle = [Phase::Wait; PHASE_COUNT - 2];
+        let mut i = 0;
+        while i < cycle.len() {
+            cycle[i] = Phase::ALL[i + 1];
+            i += 1;
+        }
+        cycle
+    };
 
     const NAMES: [&'static str; PHASE_COUNT] = [
         "wait",
