@@ -8,11 +8,13 @@ pub mod bottle_fit;
 pub mod camera_percept;
 mod percept;
 mod sighting_percept;
+pub mod type_reader;
 
 pub use bottle_fit::{BottleFitter, BottlePose};
 pub use camera_percept::{
     BottleSighting, CameraPerception, CameraPerceptionError, PartSighting, Sighting, StationItem,
-    TargetRule, measure_in_window, part_window,
+    TargetRule, find_in_window, measure_found, measure_in_window, part_window,
 };
 pub use percept::{PerceivedObstacle, Percept, bottle_obstacle, part_obstacle};
 pub use sighting_percept::{NEIGHBOURHOOD_M, StationModel};
+pub use type_reader::{TypeDecision, TypeReader};
