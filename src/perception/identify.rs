@@ -140,6 +140,54 @@ mod tests {
         assert_eq!(identify(&wide, &both), TypeCall::Ambiguous(vec![1, 0]));
     }
 
+    /// The outer edge is read to within a pixel over the family's walls (outer/bore 1.15-3) and
+    /// bores from 14 px: the ratio is taken to the fitted bore, not the coarse outline.
+    #[test]
+    fn the_rim_walk_reads_the_outer_edge_over_the_walls_of_the_family() {
+        use crate::perception::synthetic::{BoreShape, Illumination, Noise, Scene, Tube};
+        use crate::perception::{BoreDetector, BoreDetectorParams};
+        let detector = BoreDetector::new(BoreDetectorParams::default());
+        let mut rng = crate::rng::SimRng::new(24);
+        let mut worst: f64 = 0.0;
+        for _ in 0..40 {
+            let r = rng.range(14.0, 60.0);
+            let ratio = rng.range(1.15, 3.0);
+            let outer = r * ratio;
+            let side = (2.0 * outer + 40.0).ceil() as u32;
+            let c = f64::from(side) / 2.0 + rng.range(-0.5, 0.5);
+            let image = Scene {
+                width_px: side,
+                height_px: side,
+                belt_level: 40.0,
+                tubes: vec![Tube {
+                    centre_px: [c, c],
+                    bore: BoreShape::Circle { radius_px: r },
+                    outer_radius_px: outer,
+                    rim_level: 200.0,
+                    bore_level: 20.0,
+                }],
+                bottles: vec![],
+                stains: vec![],
+                rim_stains: vec![],
+                illumination: Illumination::EVEN,
+                noise: Noise::NONE,
+                noise_seed: 0,
+            }
+            .render();
+            let bores = detector.detect(&image).unwrap_or_default();
+            let [bore] = bores.as_slice() else {
+                panic!("r {r:.1} ratio {ratio:.2}: {} bores", bores.len());
+            };
+            let error = bore.outer_ratio * bore.radius_px - outer;
+            worst = worst.max(error.abs());
+            assert!(
+                error.abs() < 1.0,
+                "r {r:.1} ratio {ratio:.2}: off {error:.2} px"
+            );
+        }
+        eprintln!("outer radius within {worst:.2} px");
+    }
+
     #[test]
     fn without_an_outer_reading_the_bore_alone_decides() {
         let sizes = [size(20.0, 34.0, 1.0), size(20.0, 40.0, 1.0)];

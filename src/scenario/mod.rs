@@ -280,10 +280,10 @@ pub struct PartType {
     pub diameter_tolerance_mm: Option<f64>,
 }
 
-/// The diameter tolerance of a type that sets none, mm: about twice the expanded uncertainty
-/// (k = 2) of the outer diameter, the coarser of the two readings (the rim's end is found in
-/// steps of one area-of-interest pixel, 0.18 mm at the default camera), measured over paper_50
-/// in camera mode (see docs/type-identification.md).
+/// The diameter tolerance of a type that sets none, mm. On the default overhead camera the
+/// readings err by at most 0.05 mm (bore) and 0.14 mm (outer diameter, the coarser) over
+/// paper_50's 50 parts; a tilted or coarser camera reads coarser and no per-camera band is
+/// estimated yet, so the default leaves several times that (see docs/type-identification.md).
 pub const DEFAULT_DIAMETER_TOLERANCE_MM: f64 = 1.0;
 
 impl PartType {
