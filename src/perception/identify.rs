@@ -70,7 +70,7 @@ pub fn read_on_plane(bore: &Bore, calibration: &CameraCalibration) -> Option<Siz
     Some(SizeReading {
         bore_m: diameter,
         outer_m: (bore.outer_ratio.is_finite() && bore.outer_ratio > 1.0)
-            .then(|| bore.outer_ratio * diameter),
+            .then_some(bore.outer_ratio * diameter),
     })
 }
 
