@@ -139,8 +139,8 @@ pub struct CameraPerception {
     renderers: Mutex<Vec<Renderer>>,
     detectors: Mutex<Vec<Detector>>,
     bore_detector: BoreDetector,
-    /// The scenario type each detector class names (by measurement: every tube class names
-    /// the bulkiest type until the target is measured).
+    /// The scenario type each detector class names (by measurement: the one of that name, or
+    /// the bulkiest, until the target is measured).
     type_of_class: Vec<Option<usize>>,
     type_reader: TypeReader,
     bottle_class: Option<usize>,
@@ -189,10 +189,13 @@ impl CameraPerception {
         let type_reader = TypeReader::new(scenario);
         let mut type_of_class = vec![None; classes.len()];
         if type_reader.type_by() == TypeBy::Measurement {
-            // The detector only has to find a tube: any of its classes but the bottle.
+            // The detector only has to find a tube: any of its classes but the bottle. Parts
+            // other than the target are not measured: as obstacles they take the type the class
+            // names where it is one of the scenario's, else the bulkiest (the larger obstacle).
             for (class, name) in classes.iter().enumerate() {
                 if name != "bottle" {
-                    type_of_class[class] = Some(type_reader.bulkiest());
+                    let named = scenario.part_types.iter().position(|t| &t.name == name);
+                    type_of_class[class] = Some(named.unwrap_or(type_reader.bulkiest()));
                 }
             }
         }
