@@ -3,33 +3,34 @@
 use std::path::PathBuf;
 use std::sync::Mutex;
 
+use image::RgbImage;
 use pyo3::exceptions::PyRuntimeError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use twincell::detect::Detector;
+use twincell::detect::{Detection, Detector};
 
 use crate::arrays::{bad_value, rgb_image};
 
 /// The shipped network, loaded on first use and kept: loading it costs far more than one frame.
 static SHIPPED: Mutex<Option<Detector>> = Mutex::new(None);
 
-/// Runs `f` on the shipped detector, loading it the first time.
-fn with_shipped<T>(f: impl FnOnce(&mut Detector) -> T) -> PyResult<T> {
+/// The shipped detector's answer on `image`, loading it the first time. Called without the
+/// GIL: a thread waiting here for another's frame must not hold the GIL that one needs back.
+fn detect_shipped(image: &RgbImage) -> Result<Vec<Detection>, String> {
     let mut slot = SHIPPED
         .lock()
-        .map_err(|_| PyRuntimeError::new_err("the detector was poisoned by an earlier failure"))?;
+        .map_err(|_| "the detector was poisoned by an earlier failure".to_owned())?;
     if slot.is_none() {
-        let detector = Detector::load_default().map_err(|e| {
-            PyRuntimeError::new_err(format!("cannot load the shipped detector: {e}"))
-        })?;
+        let detector = Detector::load_default()
+            .map_err(|e| format!("cannot load the shipped detector: {e}"))?;
         *slot = Some(detector);
     }
-    match slot.as_mut() {
-        Some(detector) => Ok(f(detector)),
-        None => Err(PyRuntimeError::new_err(
-            "the shipped detector is not loaded",
-        )),
-    }
+    let Some(detector) = slot.as_mut() else {
+        return Err("the shipped detector is not loaded".to_owned());
+    };
+    detector
+        .detect(image)
+        .map_err(|e| format!("the detector failed: {e}"))
 }
 
 /// Finds parts and bottles in `image` (numpy uint8, H x W x 3, RGB as the camera delivers it).
@@ -46,14 +47,16 @@ pub fn detect<'py>(
 ) -> PyResult<Vec<Bound<'py, PyDict>>> {
     let rgb = rgb_image("image", image)?;
     let found = match model {
-        None => with_shipped(|detector| py.detach(|| detector.detect(&rgb)))?,
+        None => py
+            .detach(|| detect_shipped(&rgb))
+            .map_err(PyRuntimeError::new_err)?,
         Some(path) => {
             let mut detector = Detector::load(&path)
                 .map_err(|e| bad_value("model", format!("{e}: {}", path.display())))?;
             py.detach(|| detector.detect(&rgb))
+                .map_err(|e| PyRuntimeError::new_err(format!("the detector failed: {e}")))?
         }
-    }
-    .map_err(|e| PyRuntimeError::new_err(format!("the detector failed: {e}")))?;
+    };
     found
         .iter()
         .map(|d| {

@@ -71,3 +71,29 @@ def test_a_missing_model_file_raises_naming_it(tmp_path):
     image = np.zeros((48, 64, 3), dtype=np.uint8)
     with pytest.raises(ValueError, match=r"^model:"):
         twincell.detect(image, model=tmp_path / "none.onnx")
+
+
+def test_threads_share_the_detector_and_get_the_same_answers(shots):
+    """The detector runs without the GIL; threads calling it at once must neither deadlock
+    nor mix up their frames."""
+    import threading
+
+    images = [shot.image for shot in shots]
+    expected = [twincell.detect(image) for image in images]
+    results = {}
+
+    def work(worker):
+        for round_ in range(2):
+            for i, image in enumerate(images):
+                results[(worker, round_, i)] = twincell.detect(image)
+
+    # Daemon threads, so that a deadlock fails the test instead of hanging the interpreter.
+    threads = [threading.Thread(target=work, args=(w,), daemon=True) for w in range(3)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(timeout=300)
+        assert not t.is_alive(), "a thread calling detect did not finish"
+    assert len(results) == 3 * 2 * len(images)
+    for (_, _, i), found in results.items():
+        assert found == expected[i]
