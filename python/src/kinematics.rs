@@ -88,7 +88,7 @@ pub fn ik<'py>(
 }
 
 /// The pose of `link` (`"flange"` or `"tcp"`) in the arm's base frame at joint angles `q`
-/// (6 numbers, rad, controller convention), as a 4 x 4 matrix; the arm as for [`ik`].
+/// (6 numbers, rad, controller convention), as a 4 x 4 matrix; the arm as for `ik`.
 #[pyfunction]
 #[pyo3(signature = (q, scenario = None, link = "flange", **overrides))]
 pub fn fk<'py>(
