@@ -10,7 +10,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 use twincell::cell::{Cell, CellModel};
 use twincell::kinematics::JointVector;
-use twincell::planning::{JointTrajectory, PickPlanner, capture_robot_shapes, scenery_obstacles};
+use twincell::planning::{JointTrajectory, PickPlanner};
 use twincell::rng::SimRng;
 use twincell::scenario::{Catalogue, PartTypeId};
 use twincell::station::{PerceivedObstacle, Percept, bottle_obstacle, part_obstacle};
@@ -20,27 +20,6 @@ use crate::scenario_arg::cell_model;
 
 /// Sample spacing of the trajectories handed back, s.
 const SAMPLE_PERIOD_S: f64 = 0.01;
-
-/// The planner of a trial of `model` in `cell`, as the task builds it.
-fn planner_for(model: &CellModel, cell: &Cell) -> PickPlanner {
-    let scenario = model.scenario();
-    let arm = model.arm_model().clone();
-    let home = scenario.robot.home_q_rad;
-    let world_from_base = *cell.arm.world_from_base();
-    PickPlanner {
-        robot_shapes: capture_robot_shapes(&cell.world, &cell.arm, &arm, &home),
-        model: arm,
-        ik: model.ik().clone(),
-        world_from_base,
-        finger_reference_m: cell.finger_reference_m,
-        obstacles: scenery_obstacles(&cell.scenery, &world_from_base.inverse()),
-        belt_top_z: cell.belt_top_z,
-        open_clearance_m: scenario.gripper.open_clearance_m,
-        speed_fraction: scenario.robot.speed_fraction,
-        carry_speed_fraction: scenario.robot.carry_speed_fraction,
-        home_q_rad: home,
-    }
-}
 
 /// A required item of a dict argument.
 fn item<'py>(arg: &str, dict: &Bound<'py, PyDict>, key: &str) -> PyResult<Bound<'py, PyAny>> {
@@ -255,7 +234,7 @@ pub fn plan_pick<'py>(
     if let Err(e) = model.arm_model().check_limits(&q_now) {
         return Err(bad_value("q_now", e));
     }
-    let planner = planner_for(&model, &cell);
+    let planner = PickPlanner::for_cell(&model, &cell);
     let planned = py.detach(|| {
         let checker = planner.checker_for(&percept);
         planner.plan_pick(&percept, &checker, &q_now)
