@@ -4,10 +4,11 @@
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use rapier3d::geometry::SharedShape;
 
+use super::capture_robot_shapes;
 use super::{
     Carried, CollisionChecker, JointTrajectory, Obstacle, Payload, RobotShape, straight_line,
 };
-use crate::cell::{BinBody, SceneryBox};
+use crate::cell::{BinBody, Cell, CellModel, SceneryBox};
 use crate::kinematics::{AnalyticIk, ArmModel, IkSolver, JointVector};
 use crate::outcome::{Failure, FailureReason, fail};
 use crate::station::Percept;
@@ -127,6 +128,28 @@ pub(super) fn fine_yaws_deg() -> impl Iterator<Item = f64> {
 }
 
 impl PickPlanner {
+    /// The planner of `model`'s arm in `cell` as built for a trial: the arm's model and IK, its
+    /// collision shapes captured at home, the cell's scenery, and the scenario's speeds.
+    pub fn for_cell(model: &CellModel, cell: &Cell) -> Self {
+        let scenario = model.scenario();
+        let arm = model.arm_model().clone();
+        let home = scenario.robot.home_q_rad;
+        let world_from_base = *cell.arm.world_from_base();
+        Self {
+            robot_shapes: capture_robot_shapes(&cell.world, &cell.arm, &arm, &home),
+            model: arm,
+            ik: model.ik().clone(),
+            world_from_base,
+            finger_reference_m: cell.finger_reference_m,
+            obstacles: scenery_obstacles(&cell.scenery, &world_from_base.inverse()),
+            belt_top_z: cell.belt_top_z,
+            open_clearance_m: scenario.gripper.open_clearance_m,
+            speed_fraction: scenario.robot.speed_fraction,
+            carry_speed_fraction: scenario.robot.carry_speed_fraction,
+            home_q_rad: home,
+        }
+    }
+
     /// The collision checker for a pick of `percept`'s part: the cell's obstacles, the part
     /// itself (until the fingers go down around it) and what perception saw near it.
     pub fn checker_for(&self, percept: &Percept) -> CollisionChecker {
