@@ -75,6 +75,10 @@ pub struct CollisionHit {
     pub time_s: f64,
 }
 
+/// What parry's f32 distances may come out short by, m: the fingertips stop exactly the
+/// margin above the belt by design, and the distance there comes out a hair under it.
+const F32_SLACK_M: f64 = 1e-4;
+
 /// The nearest pair of a robot shape and an obstacle at one configuration.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Clearance {
@@ -205,7 +209,7 @@ impl CollisionChecker {
                     obstacle_pose,
                     obstacle.shape.as_ref(),
                 ) {
-                    Ok(d) => d.distance < self.margin_m as f32,
+                    Ok(d) => f64::from(d.distance) + F32_SLACK_M < self.margin_m,
                     // Pairs parry cannot measure fall back to an overlap test.
                     Err(_) => query::intersection_test(
                         &pose,

@@ -117,7 +117,6 @@ pub struct GraspSearch<'a> {
     lift_z: f64,
     preferred_yaw_rad: f64,
     open_m: f64,
-    grip_m: f64,
     q_now: JointVector,
 }
 
@@ -183,7 +182,6 @@ impl<'a> GraspSearch<'a> {
             lift_z,
             preferred_yaw_rad,
             open_m: planner.open_offset_m(percept),
-            grip_m: percept.part_outer_radius_m,
             q_now: *q_now,
         }
     }
@@ -226,7 +224,10 @@ impl<'a> GraspSearch<'a> {
     }
 
     /// Scores a candidate whose grasp configuration is `q_at`: its smallest clearance along
-    /// the grasp, the descent (jaws open) and the lift (jaws on the part), measured bottom up.
+    /// the grasp, the descent and the lift, measured bottom up. The lift is scored with the
+    /// jaws open too: that envelope holds the closed jaws' for everything outside them, and
+    /// leaves out what stands between them, the part itself (or a second look at it, which
+    /// perception can report as another part beside it).
     /// Scoring stops as soon as the clearance falls to `floor_m` (it could not win then).
     /// `None` when a line has no continuous IK path.
     fn score(
@@ -245,7 +246,7 @@ impl<'a> GraspSearch<'a> {
         let configurations = rise
             .iter()
             .map(|q| (q, self.open_m))
-            .chain(up.iter().skip(1).map(|q| (q, self.grip_m)));
+            .chain(up.iter().skip(1).map(|q| (q, self.open_m)));
         for (q, fingers_m) in configurations {
             if let Some((link, obstacle)) = self.floor.check_configuration(q, fingers_m, None, &[])
             {

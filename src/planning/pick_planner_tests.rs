@@ -394,7 +394,7 @@ fn measured_clearance(
         .fold(CLEARANCE_CAP_M, f64::min)
 }
 
-/// The descent (after the blend) and the lift of `plan`, sampled, with their finger offsets.
+/// The descent (after the blend) and the lift of `plan`, sampled, with the jaws open.
 fn descent_and_lift(
     planner: &PickPlanner,
     percept: &Percept,
@@ -409,11 +409,8 @@ fn descent_and_lift(
             plan.approach.sample(t).map(|s| (s.q, open))
         })
         .collect();
-    configurations.extend(
-        plan.lift_path
-            .iter()
-            .map(|q| (*q, percept.part_outer_radius_m)),
-    );
+    // The lift is scored with the jaws open: their envelope holds the closed jaws'.
+    configurations.extend(plan.lift_path.iter().map(|q| (*q, open)));
     configurations
 }
 
