@@ -7,6 +7,7 @@
 pub mod bottle_fit;
 pub mod camera_percept;
 mod percept;
+mod sighting_percept;
 
 pub use bottle_fit::{BottleFitter, BottlePose};
 pub use camera_percept::{
@@ -14,3 +15,4 @@ pub use camera_percept::{
     TargetRule, measure_in_window, part_window,
 };
 pub use percept::{PerceivedObstacle, Percept, bottle_obstacle, part_obstacle};
+pub use sighting_percept::{NEIGHBOURHOOD_M, StationModel};

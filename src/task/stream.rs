@@ -5,8 +5,10 @@
 
 use nalgebra::Point3;
 
+use super::cell_data::CellData;
 use super::pick_cycle::Cycle;
-use super::trial::Trial;
+use super::sorter::Sorter;
+use crate::cell::CellModel;
 use crate::outcome::{
     Failure, FailureReason, Misidentification, Outcome, StreamPartRecord, StreamRecord, TrialRecord,
 };
@@ -30,18 +32,26 @@ enum AtEye {
     Bottle,
 }
 
-impl Trial<'_> {
+impl Sorter<'_> {
     /// The paper's trial: one part (and its bottle) from the belt into its bin.
-    pub(crate) fn run_single(mut self, index: u32, seed: u64) -> TrialRecord {
-        let cycle = match self.wait_for_part() {
-            Ok(()) => self.pick_cycle(None),
-            Err(failure) => self.unreached(failure),
+    pub(crate) fn run_single(
+        mut self,
+        model: &CellModel,
+        data: &mut CellData,
+        index: u32,
+    ) -> TrialRecord {
+        let cycle = match data.wait_for_part(model) {
+            Ok(stopped_s) => {
+                self.pick_time_s = Some(stopped_s);
+                self.pick_cycle(model, data, None)
+            }
+            Err(failure) => self.unreached(model, data, failure),
         };
         let (failure, detail) = split(cycle.failure);
-        let sim_time_s = self.cell.world.time_s();
+        let sim_time_s = data.cell.world.time_s();
         TrialRecord {
             trial: index,
-            seed,
+            seed: data.seed,
             outcome: Outcome::from_failed(failure.is_some()),
             failure,
             detail,
@@ -53,15 +63,15 @@ impl Trial<'_> {
             distractor_displacement_mm: cycle.displacement_m * 1e3,
             cycle_time_s: cycle.cycle_time_s,
             sim_time_s,
-            motion: self.motion,
-            timing: self.timing,
+            motion: data.motion,
+            timing: data.timing.clone(),
             stream: None,
         }
     }
 
     /// Points along the photo-eye's beam across the belt, world.
-    fn beam_points(&self) -> Vec<Point3<f64>> {
-        let belt = &self.scenario.conveyor;
+    fn beam_points(model: &CellModel, data: &CellData) -> Vec<Point3<f64>> {
+        let belt = &model.scenario().conveyor;
         let samples = (belt.width_m / BEAM_SAMPLE_M).ceil().max(1.0) as usize;
         let mut points = Vec::with_capacity((samples + 1) * BEAM_HEIGHTS_M.len());
         for height in BEAM_HEIGHTS_M {
@@ -71,7 +81,7 @@ impl Trial<'_> {
                 points.push(Point3::new(
                     belt.photo_eye_x_m,
                     y,
-                    self.cell.belt_top_z + height,
+                    data.cell.belt_top_z + height,
                 ));
             }
         }
@@ -80,9 +90,13 @@ impl Trial<'_> {
 
     /// Identifies what stopped the belt. The truth (which body breaks the beam) only chooses
     /// the part the judge follows; in camera mode the decision comes from the image.
-    fn identify_at_eye(&mut self) -> Result<AtEye, Failure> {
-        let at_eye = self.cell.bodies_at_photo_eye();
-        let true_part = self
+    fn identify_at_eye(
+        &mut self,
+        model: &CellModel,
+        data: &mut CellData,
+    ) -> Result<AtEye, Failure> {
+        let at_eye = data.cell.bodies_at_photo_eye();
+        let true_part = data
             .cell
             .items
             .parts()
@@ -91,7 +105,7 @@ impl Trial<'_> {
         if let Some(i) = true_part {
             self.current = i;
         }
-        let true_bottle = self
+        let true_bottle = data
             .cell
             .items
             .bottles()
@@ -107,12 +121,17 @@ impl Trial<'_> {
                 )),
             };
         };
-        let sighting = self.look(camera, TargetRule::AtBeam(self.beam_points()))?;
+        let beam = TargetRule::AtBeam(Self::beam_points(model, data));
+        let sighting = self.look(model, data, camera, beam)?;
         match (sighting.at_station, true_part) {
             (Some(StationItem::Part), Some(_)) => Ok(AtEye::Part(Some(Box::new(sighting)))),
             (Some(StationItem::Part), None) => {
                 let identified = sighting.target.as_ref().map_or("a part", |t| {
-                    self.catalogue.part(PartTypeId(t.type_index)).name.as_str()
+                    model
+                        .catalogue()
+                        .part(PartTypeId(t.type_index))
+                        .name
+                        .as_str()
                 });
                 self.misidentified = Some(Misidentification {
                     truth: "bottle".to_owned(),
@@ -126,7 +145,7 @@ impl Trial<'_> {
             (Some(StationItem::Bottle(_)), None) => Ok(AtEye::Bottle),
             (Some(StationItem::Bottle(_)), Some(i)) => {
                 self.misidentified = Some(Misidentification {
-                    truth: self.cell.items.parts()[i].instance.type_name.clone(),
+                    truth: data.cell.items.parts()[i].instance.type_name.clone(),
                     identified: "bottle".to_owned(),
                 });
                 Err(Failure::new(
@@ -145,28 +164,36 @@ impl Trial<'_> {
     }
 
     /// A stream trial. The stream halts at its first fault, as a cell does.
-    pub(crate) fn run_stream(mut self, index: u32, seed: u64) -> TrialRecord {
-        let planned = self.scenario.parts_per_trial;
+    pub(crate) fn run_stream(
+        mut self,
+        model: &CellModel,
+        data: &mut CellData,
+        index: u32,
+    ) -> TrialRecord {
+        let planned = model.scenario().parts_per_trial;
         let mut parts: Vec<StreamPartRecord> = Vec::new();
         let (mut bottles_passed, mut belt_stops) = (0u32, 0u32);
         let (mut touched, mut picked, mut displacement_m) = (false, false, 0.0f64);
         let mut first_stop_s = None;
         let mut halt: Option<Failure> = None;
         while parts.len() < planned as usize {
-            if let Err(failure) = self.wait_for_part() {
-                halt = Some(failure);
-                break;
+            match data.wait_for_part(model) {
+                Ok(stopped_s) => self.pick_time_s = Some(stopped_s),
+                Err(failure) => {
+                    halt = Some(failure);
+                    break;
+                }
             }
             belt_stops += 1;
             first_stop_s.get_or_insert(self.pick_time_s.unwrap_or(0.0));
-            match self.identify_at_eye() {
+            match self.identify_at_eye(model, data) {
                 Ok(AtEye::Part(seen)) => {
-                    let cycle = self.pick_cycle(seen.map(|s| *s));
+                    let cycle = self.pick_cycle(model, data, seen.map(|s| *s));
                     touched |= cycle.touched;
                     picked |= cycle.picked;
                     displacement_m = displacement_m.max(cycle.displacement_m);
                     if let Some(bin) = cycle.placed_bin_id {
-                        self.bin_fill[bin.0] += 1;
+                        data.bin_fill[bin.0] += 1;
                     }
                     let failed = cycle.failure.is_some();
                     parts.push(stream_part(count_u32(parts.len()), cycle));
@@ -176,7 +203,7 @@ impl Trial<'_> {
                 }
                 Ok(AtEye::Bottle) => {
                     bottles_passed += 1;
-                    if let Err(failure) = self.let_pass() {
+                    if let Err(failure) = data.let_pass(model) {
                         halt = Some(failure);
                         break;
                     }
@@ -215,10 +242,10 @@ impl Trial<'_> {
             ),
             (None, None) => (None, None),
         };
-        let sim_time_s = self.cell.world.time_s();
+        let sim_time_s = data.cell.world.time_s();
         TrialRecord {
             trial: index,
-            seed,
+            seed: data.seed,
             outcome: Outcome::from_failed(failure.is_some()),
             failure,
             detail: detail.map(|d| format!("{parts_sorted}/{planned} parts sorted; {d}")),
@@ -230,8 +257,8 @@ impl Trial<'_> {
             distractor_displacement_mm: displacement_m * 1e3,
             cycle_time_s: first_stop_s.map_or(0.0, |t| sim_time_s - t),
             sim_time_s,
-            motion: self.motion,
-            timing: self.timing,
+            motion: data.motion,
+            timing: data.timing.clone(),
             stream: Some(StreamRecord {
                 parts_planned: planned,
                 parts_sorted,
