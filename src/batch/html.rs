@@ -405,6 +405,7 @@ mod tests {
                 part: sorted,
                 decision: Some(decision("axle_a20", 0.11)),
                 cycle_time_s: 7.5,
+                grasp: None,
             }],
             misidentified: Some(Misidentification {
                 truth: "bottle".into(),

@@ -10,8 +10,8 @@ pub use failure::{Failure, fail};
 pub use motion_record::MotionRecord;
 pub use phase::{PHASE_COUNT, Phase, PhaseSeconds};
 pub use trial_record::{
-    DecisionRecord, FailureReason, Misidentification, Outcome, PartOutcome, PartRecord, Perception,
-    StreamPartRecord, StreamRecord, TrialRecord, TrialTiming,
+    DecisionRecord, FailureReason, GraspRecord, Misidentification, Outcome, PartOutcome,
+    PartRecord, Perception, StreamPartRecord, StreamRecord, TrialRecord, TrialTiming,
 };
 
 /// Runs one trial of a scenario. Implementations must be deterministic in `(index, seed)`.

@@ -186,6 +186,19 @@ pub struct TrialRecord {
     /// described by `part`, `decision` and `placed_bin`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub stream: Option<StreamRecord>,
+    /// The grasp planned for a single-part trial's part (absent when none was planned).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub grasp: Option<GraspRecord>,
+}
+
+/// The grasp the planner chose for a part.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct GraspRecord {
+    /// Smallest clearance of the robot to the obstacles along descent, grasp and lift, mm; the
+    /// search counts every grasp past 20 mm as equally clear, so 20 is its most.
+    pub clearance_mm: f64,
+    /// How many candidate grasps the search weighed.
+    pub candidates: u32,
 }
 
 /// What happened to one part of a stream.
@@ -207,6 +220,9 @@ pub struct StreamPartRecord {
     pub placed_bin: Option<String>,
     /// Simulated time from the belt's stop for this part to the arm's return home, s.
     pub cycle_time_s: f64,
+    /// The grasp planned for it (absent when none was planned).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub grasp: Option<GraspRecord>,
 }
 
 /// A stream trial: the parts fed, what became of each, and the belt's stops.
@@ -315,6 +331,7 @@ impl TrialRecord {
             motion: MotionRecord::default(),
             timing: TrialTiming::default(),
             stream: None,
+            grasp: None,
         }
     }
 }

@@ -320,6 +320,10 @@ pub struct BottleSection {
     /// `distance_range_m` from the part's and at least 10 mm clear of it.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub near_gap_range_m: Option<[f64; 2]>,
+    /// How many of the bottles, the first ones, stand at `near_gap_range_m` from the part when
+    /// that is set (at least 1, at most `count_range`'s fewest). Signed for the same reason as
+    /// `count_range`.
+    pub near_count: i64,
 }
 
 impl Default for BottleSection {
@@ -333,6 +337,7 @@ impl Default for BottleSection {
             lying_fraction: 0.0,
             count_range: [1, 1],
             near_gap_range_m: None,
+            near_count: 1,
         }
     }
 }

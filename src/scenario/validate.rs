@@ -500,6 +500,15 @@ impl Scenario {
                 ),
             ));
         }
+        if !(1 <= bottle.near_count && bottle.near_count <= fewest) {
+            return Err(c.fail(
+                "bottle.near_count",
+                format!(
+                    "must lie in [1, {fewest}] (bottle.count_range's fewest), got {}",
+                    bottle.near_count
+                ),
+            ));
+        }
         Ok(())
     }
 

@@ -66,6 +66,7 @@ impl Sorter<'_> {
             motion: data.motion,
             timing: data.timing.clone(),
             stream: None,
+            grasp: cycle.grasp,
         }
     }
 
@@ -267,6 +268,7 @@ impl Sorter<'_> {
                 parts,
                 misidentified: self.misidentified.take(),
             }),
+            grasp: None,
         }
     }
 }
@@ -292,5 +294,6 @@ fn stream_part(index: u32, cycle: Cycle) -> StreamPartRecord {
         decision: cycle.decision,
         placed_bin: cycle.placed_bin,
         cycle_time_s: cycle.cycle_time_s,
+        grasp: cycle.grasp,
     }
 }
