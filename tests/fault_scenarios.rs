@@ -7,6 +7,7 @@ mod common;
 use std::path::{Path, PathBuf};
 
 use twincell::control::FaultPlan;
+use twincell::outcome::FaultKind;
 use twincell::scenario::{FAULT_KINDS, Override, Scenario};
 
 fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
@@ -40,7 +41,12 @@ fn the_fault_suite_has_one_scenario_per_kind_each_extending_a_base() {
         // One kind each: drawn over many seeds, the file's plans name its kind and no other.
         let mut named = std::collections::BTreeSet::new();
         for seed in 0..400 {
-            named.extend(FaultPlan::draw(&scenario, seed).kinds());
+            named.extend(
+                FaultPlan::draw(&scenario, seed)
+                    .kinds()
+                    .into_iter()
+                    .map(FaultKind::as_str),
+            );
         }
         assert_eq!(named.into_iter().collect::<Vec<_>>(), [kind], "{kind}");
         kinds.push(kind);
@@ -49,6 +55,11 @@ fn the_fault_suite_has_one_scenario_per_kind_each_extending_a_base() {
         .expect("scenarios/faults")
         .count();
     assert_eq!(files, kinds.len(), "one file per kind, no others");
+}
+
+#[test]
+fn records_name_the_kinds_as_the_scenario_does() {
+    assert_eq!(FaultKind::ALL.map(FaultKind::as_str), FAULT_KINDS);
 }
 
 #[test]

@@ -2,7 +2,7 @@
 //! derived stream per fault kind, so a scenario without faults draws nothing and a fault kind
 //! added to a scenario leaves the other kinds' draws (and the cell's own) where they were.
 
-use crate::outcome::Phase;
+use crate::outcome::{FaultKind, Phase};
 use crate::rng::SimRng;
 use crate::scenario::{BeltFaultMode, BlackoutMode, FaultsSection, Scenario};
 
@@ -197,16 +197,16 @@ impl FaultPlan {
         *self == Self::default()
     }
 
-    /// The kinds of fault the plan injects, named as `[faults]` names them.
-    pub fn kinds(&self) -> Vec<&'static str> {
+    /// The kinds of fault the plan injects.
+    pub fn kinds(&self) -> Vec<FaultKind> {
         let eye =
             self.photo_eye.false_trigger_at_s.is_some() || self.photo_eye.missed_crossing.is_some();
         [
-            ("gripper", self.gripper.is_some()),
-            ("camera", self.camera.is_some()),
-            ("arm", self.arm.is_some()),
-            ("belt", self.belt.is_some()),
-            ("photo_eye", eye),
+            (FaultKind::Gripper, self.gripper.is_some()),
+            (FaultKind::Camera, self.camera.is_some()),
+            (FaultKind::Arm, self.arm.is_some()),
+            (FaultKind::Belt, self.belt.is_some()),
+            (FaultKind::PhotoEye, eye),
         ]
         .into_iter()
         .filter_map(|(kind, fires)| fires.then_some(kind))
@@ -304,10 +304,7 @@ mod tests {
         let mut motions = std::collections::BTreeSet::new();
         for seed in 0..500 {
             let plan = FaultPlan::draw(&scenario, seed);
-            assert_eq!(
-                plan.kinds(),
-                ["gripper", "camera", "arm", "belt", "photo_eye"]
-            );
+            assert_eq!(plan.kinds(), FaultKind::ALL);
             let grip = plan.gripper.expect("rate 1");
             assert!((0.3..0.9).contains(&grip.delay_s), "{grip:?}");
             assert_eq!((grip.grasp, grip.force_fraction), (0, 0.1));
