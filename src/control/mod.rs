@@ -2,6 +2,7 @@
 //! trajectory, the gripper's and the belt's drives, and the monitor of a held part; and the
 //! faults those drives and the cell's sensors suffer in a trial, drawn from its seed.
 
+mod backoff;
 mod belt_drive;
 mod fault_plan;
 mod gripper_drive;
@@ -9,6 +10,7 @@ mod hold_monitor;
 mod photo_eye_signal;
 mod trajectory_follower;
 
+pub use backoff::Backoff;
 pub use belt_drive::{BELT_ACCEL_M_S2, BeltDrive, ENCODER_M_PER_COUNT};
 pub use fault_plan::{
     ARM_MOTIONS, ArmStop, BeltFault, BlackoutFrames, CameraBlackout, FaultPlan, GripFault,

@@ -6,6 +6,7 @@
 
 pub mod bottle_fit;
 pub mod camera_percept;
+mod frame_check;
 mod percept;
 
 pub use bottle_fit::{BottleFitter, BottlePose};
@@ -13,4 +14,5 @@ pub use camera_percept::{
     BottleSighting, CameraPerception, CameraPerceptionError, PartSighting, Sighting, StationItem,
     TargetRule, measure_in_window, part_window,
 };
+pub use frame_check::{BLANK_LEVEL, black_frame, frame_is_blank};
 pub use percept::{PerceivedObstacle, Percept, bottle_obstacle, part_obstacle};
