@@ -192,6 +192,26 @@ impl FaultPlan {
         plan
     }
 
+    /// The grip fault that strikes grasp `grasp` (counting the trial's grasps from 0), if any.
+    pub fn grip_fault_at(&self, grasp: u32) -> Option<GripFault> {
+        self.gripper.filter(|f| f.grasp == grasp)
+    }
+
+    /// The blackout that begins at look `look` (counting the trial's looks from 0), if any.
+    pub fn blackout_at(&self, look: u32) -> Option<CameraBlackout> {
+        self.camera.filter(|f| f.look == look)
+    }
+
+    /// The arm stop that strikes `motion` of pick cycle `cycle`, if any.
+    pub fn arm_stop_in(&self, cycle: u32, motion: Phase) -> Option<ArmStop> {
+        self.arm.filter(|f| f.cycle == cycle && f.motion == motion)
+    }
+
+    /// Whether the photo-eye has a lie planned.
+    pub fn photo_eye_lies(&self) -> bool {
+        self.photo_eye != PhotoEyeFaults::default()
+    }
+
     /// Whether the plan injects no fault.
     pub fn is_empty(&self) -> bool {
         *self == Self::default()
@@ -327,6 +347,18 @@ mod tests {
             ARM_MOTIONS.len(),
             "every motion may be struck"
         );
+        // Each fault is found at its own event and no other.
+        let plan = FaultPlan::draw(&scenario, 3);
+        assert_eq!(plan.grip_fault_at(0), plan.gripper);
+        assert_eq!(plan.grip_fault_at(1), None);
+        assert_eq!(plan.blackout_at(0), plan.camera);
+        assert_eq!(plan.blackout_at(1), None);
+        let stop = plan.arm.expect("rate 1");
+        assert_eq!(plan.arm_stop_in(0, stop.motion), Some(stop));
+        assert_eq!(plan.arm_stop_in(1, stop.motion), None);
+        let other = ARM_MOTIONS.iter().find(|&&m| m != stop.motion).copied();
+        assert_eq!(other.and_then(|m| plan.arm_stop_in(0, m)), None);
+        assert!(plan.photo_eye_lies() && !FaultPlan::default().photo_eye_lies());
     }
 
     #[test]
