@@ -2,7 +2,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::MotionRecord;
+use super::{FaultRecord, MotionRecord};
 
 /// Where perception's answers came from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
@@ -186,6 +186,10 @@ pub struct TrialRecord {
     /// described by `part`, `decision` and `placed_bin`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub stream: Option<StreamRecord>,
+    /// The faults injected into the trial that struck, in the order they struck, with what
+    /// the controller did and whether the cell recovered (absent when none struck).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub faults: Vec<FaultRecord>,
 }
 
 /// What happened to one part of a stream.
@@ -315,6 +319,7 @@ impl TrialRecord {
             motion: MotionRecord::default(),
             timing: TrialTiming::default(),
             stream: None,
+            faults: Vec::new(),
         }
     }
 }

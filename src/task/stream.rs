@@ -56,6 +56,7 @@ impl Trial<'_> {
             motion: self.motion,
             timing: self.timing,
             stream: None,
+            faults: Vec::new(),
         }
     }
 
@@ -240,6 +241,7 @@ impl Trial<'_> {
                 parts,
                 misidentified: self.misidentified.take(),
             }),
+            faults: Vec::new(),
         }
     }
 }
