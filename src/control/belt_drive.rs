@@ -49,6 +49,11 @@ impl BeltDrive {
         self.fault.is_some_and(|f| f.active_at(self.clock_s))
     }
 
+    /// The injected fault, if any.
+    pub fn fault(&self) -> Option<&BeltFault> {
+        self.fault.as_ref()
+    }
+
     /// Whether an injected fault has begun by now.
     pub fn fault_struck(&self) -> bool {
         self.fault.is_some_and(|f| self.clock_s >= f.onset_s)

@@ -14,8 +14,10 @@ pub struct PhotoEyeSignal {
     /// Crossings begun so far (the beam going from clear to broken).
     crossings: u32,
     was_broken: bool,
-    false_struck: bool,
-    missed_struck: bool,
+    /// When a false trigger was first reported with the beam clear, s.
+    false_struck_s: Option<f64>,
+    /// When an unreported crossing began, s.
+    missed_struck_s: Option<f64>,
 }
 
 impl PhotoEyeSignal {
@@ -40,19 +42,23 @@ impl PhotoEyeSignal {
             .faults
             .false_trigger_at_s
             .is_some_and(|at| (at..at + FALSE_TRIGGER_PULSE_S).contains(&time_s));
-        self.missed_struck |= missed;
-        self.false_struck |= phantom && !beam_broken;
+        if missed {
+            self.missed_struck_s.get_or_insert(time_s);
+        }
+        if phantom && !beam_broken {
+            self.false_struck_s.get_or_insert(time_s);
+        }
         (beam_broken && !missed) || phantom
     }
 
-    /// Whether a false trigger has been reported with the beam clear.
-    pub fn false_trigger_struck(&self) -> bool {
-        self.false_struck
+    /// When a false trigger was reported with the beam clear, if one was, s.
+    pub fn false_trigger_struck_s(&self) -> Option<f64> {
+        self.false_struck_s
     }
 
-    /// Whether a crossing has gone unreported.
-    pub fn missed_trigger_struck(&self) -> bool {
-        self.missed_struck
+    /// When a crossing began that went unreported, if one did, s.
+    pub fn missed_trigger_struck_s(&self) -> Option<f64> {
+        self.missed_struck_s
     }
 }
 
@@ -84,7 +90,9 @@ mod tests {
         let mut signal = PhotoEyeSignal::default();
         let out = trace(&mut signal, &CROSSINGS, 3.0);
         assert_eq!(rising_edges(&out), 3);
-        assert!(!signal.false_trigger_struck() && !signal.missed_trigger_struck());
+        assert!(
+            signal.false_trigger_struck_s().is_none() && signal.missed_trigger_struck_s().is_none()
+        );
     }
 
     #[test]
@@ -99,7 +107,8 @@ mod tests {
             let (a, b) = CROSSINGS[missed as usize];
             let k = ((a + b) / 2.0 / DT_S) as usize;
             assert!(!out[k], "crossing {missed} reported");
-            assert!(signal.missed_trigger_struck());
+            let at = signal.missed_trigger_struck_s().expect("struck");
+            assert!((at - a).abs() <= DT_S, "{at} {a}");
         }
     }
 
@@ -114,7 +123,8 @@ mod tests {
         let pulse = out[..(0.5 / DT_S) as usize].iter().filter(|&&b| b).count();
         let expected = (FALSE_TRIGGER_PULSE_S / DT_S).round() as usize;
         assert!(pulse.abs_diff(expected) <= 1, "{pulse} ticks");
-        assert!(signal.false_trigger_struck());
+        let at = signal.false_trigger_struck_s().expect("struck");
+        assert!((at - 0.2).abs() <= DT_S, "{at}");
         // A phantom that falls inside a true crossing changes nothing and strikes nothing.
         let mut hidden = PhotoEyeSignal::new(PhotoEyeFaults {
             false_trigger_at_s: Some(0.6),
@@ -122,6 +132,6 @@ mod tests {
         });
         let out = trace(&mut hidden, &CROSSINGS, 3.0);
         assert_eq!(rising_edges(&out), 3);
-        assert!(!hidden.false_trigger_struck());
+        assert!(hidden.false_trigger_struck_s().is_none());
     }
 }

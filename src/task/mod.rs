@@ -2,6 +2,7 @@
 //! sequencing perception, planning and control each tick; the stream feeder; the oracle and
 //! camera percept adapters; and the judging of outcomes against the truth.
 
+mod fault_handling;
 mod feeder;
 pub mod judge;
 mod observer;

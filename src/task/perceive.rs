@@ -31,7 +31,11 @@ impl Trial<'_> {
                 let sighting = self.look(camera, TargetRule::NearestStation)?;
                 self.percept_from(&sighting)
             }
-            (None, None) => self.perceive_oracle(),
+            (None, None) => {
+                // The oracle stands in for the camera's frames, and waits out a blackout too.
+                self.await_frames()?;
+                self.perceive_oracle()
+            }
         }
     }
 
@@ -42,6 +46,7 @@ impl Trial<'_> {
         camera: &CameraPerception,
         rule: TargetRule,
     ) -> Result<Sighting, Failure> {
+        self.await_frames()?;
         let scene = Scene::from_cell(&self.cell, self.scenario);
         let mut rng = SimRng::derive(self.seed ^ CAMERA_SALT, self.shots);
         self.shots += 1;

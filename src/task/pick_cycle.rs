@@ -71,6 +71,7 @@ impl Trial<'_> {
     /// truth. `seen` is the camera's look at the station when one was already taken.
     pub(crate) fn pick_cycle(&mut self, seen: Option<Sighting>) -> Cycle {
         self.touch_phase = None;
+        self.faults.cycles += 1;
         let part = self.part_record();
         let mut decision = None;
         let result = self.run_cycle(seen, &mut decision);
@@ -126,6 +127,12 @@ impl Trial<'_> {
                     let planned = self.plan(&state);
                     self.timing.planning_ms += started.elapsed().as_secs_f64() * 1e3;
                     let (pick, place) = planned?;
+                    if !self.scenario.faults.is_empty()
+                        && let Some(percept) = &state.percept
+                    {
+                        // Kept for checking the motions again after a fault.
+                        self.faults.checker = Some(self.planner.checker_for(percept));
+                    }
                     state.pick = Some(pick);
                     state.place = Some(place);
                 }
@@ -135,6 +142,7 @@ impl Trial<'_> {
                     };
                     let open = self.planner.open_offset_m(percept);
                     self.gripper.set(open, OPEN_FORCE_N);
+                    self.faults.open_m = open;
                     let trajectory = pick.approach.clone();
                     self.play_part(phase, &trajectory, Phase::Approach, None)?;
                 }
@@ -261,6 +269,11 @@ impl Trial<'_> {
     /// Closes the jaws with the part type's force: the drive runs its stroke to fully closed,
     /// then holds; a part between the jaws stops them short, which is how the grasp is detected.
     fn grasp(&mut self, part_radius_m: f64) -> Result<(), Failure> {
+        if let Some(fault) = self.faults.plan.grip_fault_at(self.faults.grasps) {
+            self.gripper.inject(&fault);
+        }
+        self.faults.grasps += 1;
+        self.faults.held_radius_m = part_radius_m;
         self.gripper.set(0.0, self.grip_recipe_n);
         let stroke_s = self.gripper.target_m() / JAW_SPEED_M_S;
         self.settle(stroke_s + GRIP_BUILD_S)?;

@@ -8,7 +8,8 @@ use nalgebra::Point3;
 use super::pick_cycle::Cycle;
 use super::trial::Trial;
 use crate::outcome::{
-    Failure, FailureReason, Misidentification, Outcome, StreamPartRecord, StreamRecord, TrialRecord,
+    Failure, FailureReason, FaultAction, FaultKind, Misidentification, Outcome, StreamPartRecord,
+    StreamRecord, TrialRecord,
 };
 use crate::scenario::PartTypeId;
 use crate::station::{Sighting, StationItem, TargetRule};
@@ -33,10 +34,8 @@ enum AtEye {
 impl Trial<'_> {
     /// The paper's trial: one part (and its bottle) from the belt into its bin.
     pub(crate) fn run_single(mut self, index: u32, seed: u64) -> TrialRecord {
-        let cycle = match self.wait_for_part() {
-            Ok(()) => self.pick_cycle(None),
-            Err(failure) => self.unreached(failure),
-        };
+        let cycle = self.single_part();
+        let faults = self.take_fault_records(cycle.failure.is_none());
         let (failure, detail) = split(cycle.failure);
         let sim_time_s = self.cell.world.time_s();
         TrialRecord {
@@ -56,8 +55,59 @@ impl Trial<'_> {
             motion: self.motion,
             timing: self.timing,
             stream: None,
-            faults: Vec::new(),
+            faults,
         }
+    }
+
+    /// The single part from the belt into its bin, through the faults the controller can
+    /// recover from: a trigger with nothing there is run past, and a part the jaws show
+    /// dropped is looked for and picked again.
+    fn single_part(&mut self) -> Cycle {
+        let mut cycle = match self.wait_for_part() {
+            Ok(()) => self.pick_cycle(None),
+            Err(failure) => return self.unreached(failure),
+        };
+        let nothing_seen = cycle
+            .failure
+            .as_ref()
+            .is_some_and(|f| f.reason == FailureReason::NotDetected);
+        // Nothing seen and the beam clear again: the eye's trigger was false.
+        if self.scenario.faults.photo_eye.is_some() && nothing_seen && !self.photo_eye_reports() {
+            self.faults
+                .false_trigger_actions
+                .push(FaultAction::IgnoredFalseTrigger);
+            cycle = match self.wait_for_part() {
+                Ok(()) => self.pick_cycle(None),
+                Err(failure) => return self.unreached(failure),
+            };
+        }
+        let Some((dropped_at_s, phase)) = self.faults.drop_seen.take() else {
+            return cycle;
+        };
+        let mut actions = vec![FaultAction::SawDrop];
+        let detail = format!("the grip weakened and the part fell during {phase}");
+        match self.look_again_after_drop() {
+            Ok(true) => {
+                actions.extend([FaultAction::FoundOnBelt, FaultAction::Repicked]);
+                cycle = self.pick_cycle(None);
+            }
+            Ok(false) => {
+                actions.push(FaultAction::CountedLost);
+                if let Some(failure) = cycle.failure.as_mut() {
+                    failure
+                        .detail
+                        .push_str("; not seen at the pick station again: counted lost");
+                }
+            }
+            Err(failure) => {
+                actions.push(FaultAction::CountedLost);
+                cycle.failure = Some(failure);
+            }
+        }
+        let sorted = cycle.failure.is_none();
+        self.faults
+            .record(FaultKind::Gripper, dropped_at_s, detail, actions, sorted);
+        cycle
     }
 
     /// Points along the photo-eye's beam across the belt, world.
@@ -216,6 +266,7 @@ impl Trial<'_> {
             ),
             (None, None) => (None, None),
         };
+        let faults = self.take_fault_records(failure.is_none());
         let sim_time_s = self.cell.world.time_s();
         TrialRecord {
             trial: index,
@@ -241,7 +292,7 @@ impl Trial<'_> {
                 parts,
                 misidentified: self.misidentified.take(),
             }),
-            faults: Vec::new(),
+            faults,
         }
     }
 }

@@ -7,11 +7,14 @@ use std::time::Instant;
 use nalgebra::Isometry3;
 use rapier3d::prelude::*;
 
+use super::fault_handling::FaultLog;
 use super::feeder::Feeder;
 use super::observer::{CellView, ObserverSlot, TrialObserver};
 use super::phase::PhaseDeadline;
 use crate::cell::{Cell, CellModel};
-use crate::control::{BeltDrive, GripperDrive, HoldMonitor, TrajectoryFollower};
+use crate::control::{
+    BeltDrive, FaultPlan, GripperDrive, HoldMonitor, TrajectoryFollower, TrajectoryStop,
+};
 use crate::kinematics::{ArmModel, JointVector};
 use crate::outcome::{
     Failure, FailureReason, Misidentification, MotionRecord, Phase, TrialTiming, fail,
@@ -64,6 +67,8 @@ pub(crate) struct Trial<'a> {
     /// The joint angles measured after the last step, rad.
     measured_q: JointVector,
     observer: ObserverSlot<'a>,
+    /// The faults drawn for this trial, and what has come of them.
+    pub(crate) faults: FaultLog,
 }
 
 impl<'a> Trial<'a> {
@@ -100,6 +105,11 @@ impl<'a> Trial<'a> {
             ..MotionRecord::default()
         };
         let bottle_rest = vec![None; cell.items.bottles().len()];
+        let faults = FaultLog::new(FaultPlan::draw(scenario, seed));
+        let mut belt = BeltDrive::with_creep(scenario.conveyor.creep_speed_m_s);
+        if let Some(fault) = &faults.plan.belt {
+            belt.inject(fault);
+        }
         Self {
             scenario,
             catalogue: cell_model.catalogue(),
@@ -108,7 +118,7 @@ impl<'a> Trial<'a> {
             shots: 0,
             planner,
             timing: TrialTiming::default(),
-            belt: BeltDrive::with_creep(scenario.conveyor.creep_speed_m_s),
+            belt,
             gripper: GripperDrive::new(cell.finger_reference_m, scenario.gripper.grip_force_n),
             current: 0,
             bottle_rest,
@@ -123,6 +133,7 @@ impl<'a> Trial<'a> {
             motion,
             measured_q,
             observer: ObserverSlot::default(),
+            faults,
             cell,
         }
     }
@@ -163,12 +174,17 @@ impl<'a> Trial<'a> {
             PhaseDeadline::start(Phase::Wait, self.cell.world.time_s(), &self.scenario.task);
         // Hold the arm at home while waiting.
         self.hold();
-        while !self.cell.photo_eye_blocked() {
-            if let Some(deadline) = &deadline {
-                deadline.check(self.cell.world.time_s())?;
+        let commanded_before_m = self.belt.commanded_travel_m();
+        let encoder_before_m = self.belt.encoder_travel_m();
+        while !self.photo_eye_reports() {
+            if let Some(deadline) = &deadline
+                && let Err(failure) = deadline.check(self.cell.world.time_s())
+            {
+                return Err(self.timed_out_feed(failure, commanded_before_m, encoder_before_m));
             }
             self.step()?;
         }
+        self.note_belt_arrival(commanded_before_m, encoder_before_m);
         self.belt.run_at(0.0);
         while self.cell.conveyor.speed_m_s() > 0.0 {
             self.step()?;
@@ -194,7 +210,7 @@ impl<'a> Trial<'a> {
         self.belt.run_at(self.scenario.conveyor.speed_m_s);
         let deadline =
             PhaseDeadline::start(Phase::Pass, self.cell.world.time_s(), &self.scenario.task);
-        while self.cell.photo_eye_blocked() {
+        while self.photo_eye_reports() {
             if let Some(deadline) = &deadline {
                 deadline.check(self.cell.world.time_s())?;
             }
@@ -229,16 +245,35 @@ impl<'a> Trial<'a> {
         hold: Option<&HoldMonitor>,
     ) -> Result<(), Failure> {
         self.phase = phase;
-        let follower = TrajectoryFollower::new(trajectory.clone(), 0.0);
+        let mut follower = TrajectoryFollower::new(trajectory.clone(), 0.0);
+        let cycle = self.faults.cycles.saturating_sub(1);
+        let stop = self
+            .faults
+            .plan
+            .arm_stop_in(cycle, phase)
+            .map(|stop| TrajectoryStop {
+                at_s: from_s + stop.at_fraction * (to_s - from_s).max(0.0),
+                duration_s: stop.duration_s,
+            });
+        if let Some(stop) = stop {
+            follower = follower.with_stop(stop);
+        }
         // Each command aims at the end of the coming step; the span's last one at `to_s`
         // exactly, so that the next span starts where this one stopped.
         let dt = self.cell.world.params().dt_s;
-        let span_s = (to_s - from_s).max(0.0);
+        let span_s = (follower.elapsed_s_at(to_s) - from_s).max(0.0);
         let steps = (span_s / dt - 1e-9).ceil().max(0.0) as usize;
         let settle_steps = (settle_s / dt - 1e-9).ceil().max(0.0) as usize;
+        let mut stop_began_s = None;
         for step in 0..steps + settle_steps {
             if step < steps {
                 let t_s = from_s + (dt * (step + 1) as f64).min(span_s);
+                if follower.stopped_at(t_s) {
+                    stop_began_s.get_or_insert(self.cell.world.time_s());
+                } else if let (Some(began_s), Some(stop)) = (stop_began_s.take(), stop) {
+                    // The servos release: the rest of the motion is checked again first.
+                    self.resume_after_stop(phase, trajectory, (stop.at_s, to_s), began_s, hold)?;
+                }
                 if let Some(sample) = follower.command_at(&mut self.cell.world, &self.cell.arm, t_s)
                 {
                     self.q = sample.q;
@@ -254,7 +289,7 @@ impl<'a> Trial<'a> {
                     let tcp_from_part = self.tcp_from_part()?;
                     let drift_mm = hold.drift_m(&tcp_from_part) * 1e3;
                     self.motion.grip_drift_mm = self.motion.grip_drift_mm.max(drift_mm);
-                    hold.check(phase, &tcp_from_part)?;
+                    self.watch_grip(phase, hold, &tcp_from_part)?;
                 }
             }
         }
@@ -299,6 +334,10 @@ impl<'a> Trial<'a> {
         let started = Instant::now();
         self.cell.step();
         self.timing.physics_ms += started.elapsed().as_secs_f64() * 1e3;
+        if self.faults.plan.photo_eye_lies() {
+            let beam = self.cell.photo_eye_blocked();
+            self.faults.eye_reports = self.faults.eye.read(beam, self.cell.world.time_s());
+        }
         self.measure_motion(dt);
         self.observe(|slot, view| slot.step(view));
         let time_s = self.cell.world.time_s();
