@@ -2,12 +2,13 @@
 //! (the eye's output, the belt's encoder, the jaws' opening, the camera's frames), never from
 //! the truth; and the bookkeeping that turns them into the record's fault list.
 
-use nalgebra::Isometry3;
+use nalgebra::{Isometry3, Translation3};
 
 use super::trial::Trial;
 use crate::control::{Backoff, BlackoutFrames, FaultPlan, HoldMonitor, PhotoEyeSignal};
+use crate::kinematics::tcp_pose;
 use crate::outcome::{Failure, FailureReason, FaultAction, FaultKind, FaultRecord, Phase, fail};
-use crate::planning::{CollisionChecker, JointTrajectory, PART_OBSTACLE};
+use crate::planning::{CollisionChecker, JointTrajectory, PART_OBSTACLE, straight_line};
 use crate::station::{black_frame, frame_is_blank};
 
 /// How far the jaws may close past the part's diameter before the controller takes the part
@@ -17,6 +18,8 @@ const JAWS_PAST_PART_M: f64 = 0.006;
 const BELT_SHORTFALL_M: f64 = 0.01;
 /// Rest after a dropped part, before the controller looks for it, s.
 const DROP_SETTLE_S: f64 = 0.5;
+/// How far the jaws rise straight up after a drop before the arm heads home, m.
+const DROP_RAISE_M: f64 = 0.1;
 
 /// A trial's faults: the plan, the events they strike by, and the records so far.
 #[derive(Debug, Clone)]
@@ -307,7 +310,18 @@ impl Trial<'_> {
         let q_now = self.cell.arm.joint_positions(&self.cell.world);
         self.gripper.set(self.faults.open_m, 40.0);
         let speed = self.scenario.robot.speed_fraction;
-        let back = JointTrajectory::through(&self.planner.model, &[q_now, home], speed);
+        // Straight up first, clear of what stands on the belt, then over home.
+        let model = &self.planner.model;
+        let base_from_tcp = tcp_pose(model, &q_now);
+        let raised = Translation3::new(0.0, 0.0, DROP_RAISE_M) * base_from_tcp;
+        let mut parts = Vec::new();
+        let mut q_raised = q_now;
+        if let Some(up) = straight_line(&self.planner.ik, &base_from_tcp, &raised, &q_now, 0.01) {
+            q_raised = up[up.len() - 1];
+            parts.push(JointTrajectory::along(model, up, speed));
+        }
+        parts.push(JointTrajectory::through(model, &[q_raised, home], speed));
+        let back = JointTrajectory::join(parts, true);
         if let Some(checker) = &self.faults.checker
             && let Some(hit) =
                 checker.check_trajectory(&back, self.faults.open_m, None, &[PART_OBSTACLE])
@@ -343,6 +357,26 @@ impl Trial<'_> {
             && (pose.translation.z - standing_z).abs() < 0.01
             && (pose.translation.x - belt.photo_eye_x_m).abs() < 0.3
             && (pose.translation.y - belt.belt_center_m[1]).abs() < belt.width_m / 2.0
+    }
+
+    /// Where the handled part truly rests, in words, for a lost part's record (the judge's
+    /// view, never the controller's).
+    pub(crate) fn part_resting_place(&self) -> &'static str {
+        let part = &self.cell.items.parts()[self.current];
+        let Some(pose) = self.cell.body_pose(part.body) else {
+            return "gone from the world";
+        };
+        let belt = &self.scenario.conveyor;
+        let on_belt = (pose.translation.x - belt.belt_center_m[0]).abs() < belt.length_m / 2.0
+            && (pose.translation.y - belt.belt_center_m[1]).abs() < belt.width_m / 2.0
+            && (pose.translation.z - self.cell.belt_top_z).abs() < part.instance.height_m;
+        let upright = (pose.rotation * nalgebra::Vector3::z()).z > 0.9;
+        match (self.bin_holding_part().is_some(), on_belt, upright) {
+            (true, _, _) => "in a bin",
+            (false, true, true) => "standing on the belt away from the station",
+            (false, true, false) => "lying on the belt",
+            (false, false, _) => "off the belt",
+        }
     }
 
     /// The fault records of the trial, completed with the faults whose outcome shows only at

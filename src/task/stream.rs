@@ -93,10 +93,11 @@ impl Trial<'_> {
             }
             Ok(false) => {
                 actions.push(FaultAction::CountedLost);
+                let rest = self.part_resting_place();
                 if let Some(failure) = cycle.failure.as_mut() {
-                    failure
-                        .detail
-                        .push_str("; not seen at the pick station again: counted lost");
+                    failure.detail.push_str(&format!(
+                        "; not seen at the pick station again: counted lost (truth: {rest})"
+                    ));
                 }
             }
             Err(failure) => {
