@@ -8,6 +8,7 @@ use std::path::Path;
 use std::time::Duration;
 
 use criterion::{Criterion, criterion_group, criterion_main};
+use twincell::cell::CellModel;
 use twincell::detect::Detector;
 use twincell::render::{CameraRig, Renderer, RendererOptions, Shot};
 use twincell::scenario::Scenario;
@@ -26,7 +27,12 @@ fn detect_benches(c: &mut Criterion) {
         Ok(r) => r,
         Err(e) => panic!("{e}"),
     };
-    let shot = match Shot::pick_station(&scenario, None, &rig, &scenario.sensor, 0) {
+    let shot = match Shot::pick_station(
+        &CellModel::with_urdf(scenario.clone(), None).expect("cell model"),
+        &rig,
+        &scenario.sensor,
+        0,
+    ) {
         Ok(s) => s,
         Err(e) => panic!("{e}"),
     };

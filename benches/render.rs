@@ -17,6 +17,7 @@ use std::time::Duration;
 use criterion::measurement::Measurement;
 use criterion::{BenchmarkGroup, Criterion, criterion_group, criterion_main};
 use image::RgbImage;
+use twincell::cell::CellModel;
 use twincell::render::{CameraRig, Exposure, GpuScene, Renderer, RendererOptions, Scene, Shot};
 use twincell::scenario::Scenario;
 
@@ -52,7 +53,12 @@ fn renderer(msaa_samples: u32) -> Renderer {
 
 /// The bench shot (paper_50's first pick-station shot) at a resolution.
 fn staged(scenario: &Scenario, rig: &CameraRig, index: u64) -> Shot {
-    match Shot::pick_station(scenario, None, rig, &scenario.sensor, index) {
+    match Shot::pick_station(
+        &CellModel::with_urdf(scenario.clone(), None).expect("cell model"),
+        rig,
+        &scenario.sensor,
+        index,
+    ) {
         Ok(s) => s,
         Err(e) => panic!("{e}"),
     }

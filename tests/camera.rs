@@ -10,6 +10,7 @@ use std::path::{Path, PathBuf};
 
 use image::RgbImage;
 use nalgebra::Vector3;
+use twincell::cell::CellModel;
 use twincell::perception::BoreDetector;
 use twincell::perception::calibration::MeasureOnPlane;
 use twincell::render::dataset::{self, image_stem, is_val};
@@ -27,7 +28,12 @@ fn renderer(options: RendererOptions) -> Renderer {
 }
 
 fn shot(scenario: &Scenario, rig: &CameraRig, sensor: &SensorSection, index: u64) -> Shot {
-    match Shot::pick_station(scenario, None, rig, sensor, index) {
+    match Shot::pick_station(
+        &CellModel::with_urdf(scenario.clone(), None).expect("cell model"),
+        rig,
+        sensor,
+        index,
+    ) {
         Ok(s) => s,
         Err(e) => panic!("shot {index}: {e}"),
     }
@@ -232,7 +238,13 @@ fn thousand_image_dataset_is_deterministic_and_boxes_hold_their_silhouettes() {
     let (a, b) = (root.join("a"), root.join("b"));
     let mut renderer = renderer(RendererOptions::default());
     for dir in [&a, &b] {
-        match dataset::export(&scenario, None, &rig, &mut renderer, count, dir) {
+        match dataset::export(
+            &CellModel::with_urdf(scenario.clone(), None).expect("cell model"),
+            &rig,
+            &mut renderer,
+            count,
+            dir,
+        ) {
             Ok(summary) => {
                 assert_eq!(
                     (summary.train, summary.val),

@@ -6,6 +6,7 @@ mod common;
 use common::{paper_50, path_str};
 
 use nalgebra::{Point3, Vector3};
+use twincell::cell::CellModel;
 use twincell::perception::{BoreDetector, BoreDetectorParams};
 use twincell::render::{CameraRig, Renderer, RendererOptions, Shot};
 use twincell::station::{BottleFitter, measure_in_window, part_window};
@@ -32,7 +33,12 @@ fn bottle_poses_fitted_to_their_boxes_match_the_truth() {
     let belt_top_z_m = scenario.conveyor.belt_center_m[2];
     let (mut checked, mut lying_seen, mut worst_mm, mut worst_deg) = (0, 0, 0.0f64, 0.0f64);
     for index in 0..60 {
-        let shot = match Shot::pick_station(&scenario, None, &rig, &scenario.sensor, index) {
+        let shot = match Shot::pick_station(
+            &CellModel::with_urdf(scenario.clone(), None).expect("cell model"),
+            &rig,
+            &scenario.sensor,
+            index,
+        ) {
             Ok(s) => s,
             Err(e) => panic!("shot {index}: {e}"),
         };
@@ -111,7 +117,12 @@ fn bores_measured_in_their_areas_of_interest_locate_size_and_grade_the_part() {
         (0.0f64, 0.0f64, 0.0f64);
     let mut roundness_errors_mm = Vec::new();
     for index in 0..30 {
-        let shot = match Shot::pick_station(&scenario, None, &rig, &scenario.sensor, index) {
+        let shot = match Shot::pick_station(
+            &CellModel::with_urdf(scenario.clone(), None).expect("cell model"),
+            &rig,
+            &scenario.sensor,
+            index,
+        ) {
             Ok(s) => s,
             Err(e) => panic!("shot {index}: {e}"),
         };

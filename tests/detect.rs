@@ -9,6 +9,7 @@ mod common;
 
 use std::collections::BTreeSet;
 
+use twincell::cell::CellModel;
 use twincell::detect::{Detection, Detector, DetectorModel};
 use twincell::render::{CameraRig, ObjectTruth, Renderer, RendererOptions, Shot};
 use twincell::scenario::{Scenario, SensorSection};
@@ -145,7 +146,12 @@ fn tally_renders(scenario: &Scenario, per_sensor: u64) -> Tally {
     let mut tally = Tally::default();
     for (name, sensor) in [("default", scenario.sensor.clone()), ("harsh", harsh())] {
         for index in 0..per_sensor {
-            let shot = match Shot::pick_station(scenario, None, &rig, &sensor, index) {
+            let shot = match Shot::pick_station(
+                &CellModel::with_urdf(scenario.clone(), None).expect("cell model"),
+                &rig,
+                &sensor,
+                index,
+            ) {
                 Ok(s) => s,
                 Err(e) => panic!("shot {index}: {e}"),
             };
@@ -228,7 +234,12 @@ fn detection_repeats_exactly() {
         Ok(r) => r,
         Err(e) => panic!("no renderer: {e}"),
     };
-    let shot = match Shot::pick_station(&scenario, None, &rig, &scenario.sensor, 100) {
+    let shot = match Shot::pick_station(
+        &CellModel::with_urdf(scenario.clone(), None).expect("cell model"),
+        &rig,
+        &scenario.sensor,
+        100,
+    ) {
         Ok(s) => s,
         Err(e) => panic!("{e}"),
     };

@@ -6,6 +6,8 @@
 //! arm's URDF are built into the binary; a scenario's own `[robot] urdf` is read relative to
 //! the scenario file, and `--model` still names another network.
 
+mod common;
+
 use std::path::Path;
 use std::process::Command;
 
@@ -128,6 +130,14 @@ fn an_installed_binary_runs_a_copied_scenario_with_the_source_tree_out_of_sight(
     );
     assert_eq!(code, 0, "oracle batch with robot.urdf: {stdout}\n{stderr}");
     assert!(cell.join("out_urdf/report.json").is_file());
+    // The shipped arm's URDF, read from beside the scenario, is the built-in arm: the records
+    // are the first ones of paper_50's oracle batch (kept for the tests, run by the built-in).
+    let paper = common::trials_text_without_timing(&common::shared_batch::paper_50_oracle());
+    let first_two: String = paper.split_inclusive('\n').take(2).collect();
+    assert_eq!(
+        common::trials_text_without_timing(&cell.join("out_urdf")),
+        first_two
+    );
 
     // `--model` still names another network: a missing one is refused by name.
     let (code, _, stderr) = run_with_hidden(

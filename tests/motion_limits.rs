@@ -1,6 +1,7 @@
 //! The arm at its real pace stays within its published limits, as the physics measures it: every
-//! trial of paper_50 (seed 731, oracle perception so that the test needs no renderer), with the
-//! joint speeds taken from the simulated joint angles step by step, not from the plan.
+//! trial of paper_50 (seed 731, oracle perception so that the test needs no renderer; the batch
+//! tests/resume.rs resumes to, run once for both), with the joint speeds taken from the simulated
+//! joint angles step by step, not from the plan.
 
 mod common;
 
@@ -13,10 +14,10 @@ const MAX_GRIP_DRIFT_MM: f64 = 5.0;
 /// Largest mean simulated cycle, s (7.5 parts a minute).
 const MAX_MEAN_CYCLE_S: f64 = 8.0;
 
+/// Every trial of paper_50 through `twincell run --perception oracle`.
 fn all_trials() -> (Scenario, Vec<TrialRecord>) {
-    let scenario = common::paper_50();
-    let trials = scenario.trials;
-    run_trials(scenario, trials)
+    let records = common::shared_batch::records(&common::shared_batch::paper_50_oracle());
+    (common::paper_50(), records)
 }
 
 /// The first `trials` trials of `scenario` (read from paper_50's path), oracle perception, on

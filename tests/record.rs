@@ -169,7 +169,13 @@ fn bad_record_paths_are_bad_input() {
 /// detections and the bore detector's measurements against the truth.
 fn perception_frame(scenario: &Scenario) -> PerceptionFrame {
     let rig = CameraRig::from_scenario(scenario).expect("camera");
-    let shot = Shot::pick_station(scenario, None, &rig, &SensorSection::ideal(), 0).expect("shot");
+    let shot = Shot::pick_station(
+        &CellModel::with_urdf(scenario.clone(), None).expect("cell model"),
+        &rig,
+        &SensorSection::ideal(),
+        0,
+    )
+    .expect("shot");
     let mut renderer = Renderer::new(RendererOptions::default()).expect("a renderer");
     let image = shot.render(&mut renderer).expect("render");
     let truths = shot.truth(scenario);

@@ -9,7 +9,7 @@ use std::fs;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::sync::atomic::AtomicBool;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 mod common;
 use common::fake_cell::FakeCell;
@@ -458,7 +458,8 @@ fn resume_refuses_another_batch_with_exit_2_naming_the_field() {
 
 /// paper_50 (oracle, 50 trials) through the real binary, SIGKILLed at a random instant
 /// mid-batch and resumed, ends byte-identical to the uninterrupted run (timing aside),
-/// report.json included.
+/// report.json included. The uninterrupted run is the one tests/motion_limits.rs checks too,
+/// run once for both.
 #[test]
 fn paper_50_sigkilled_mid_batch_then_resumed_gives_the_uninterrupted_files() {
     let scenario = common::scenario_path("paper_50.toml");
@@ -475,15 +476,12 @@ fn paper_50_sigkilled_mid_batch_then_resumed_gives_the_uninterrupted_files() {
         ]
         .map(str::to_owned)
     };
-    let whole = out_dir("kill-whole");
-    let started = Instant::now();
-    let status = Command::new(bin())
-        .args(args(&whole, "--out"))
-        .stdout(Stdio::null())
-        .status()
-        .expect("runs");
-    let full = started.elapsed();
-    assert!(status.success(), "{status}");
+    let whole = common::shared_batch::paper_50_oracle();
+    let full = Duration::from_secs_f64(
+        common::report(&whole)["timing"]["batch_wall_s"]
+            .as_f64()
+            .expect("the batch's wall time"),
+    );
     let expected_trials = trials_text_without_timing(&whole);
     assert_eq!(expected_trials.lines().count(), 50);
 

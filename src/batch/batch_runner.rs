@@ -169,7 +169,7 @@ pub fn run_batch_with(
     let mut report = BatchReport::from_records(&meta, &records);
     report.timing.batch_wall_s = Some(started.elapsed().as_secs_f64());
     report.timing.jobs = Some(jobs);
-    let (report_path, junit_path) = write_reports(out_dir, &report, &records)?;
+    let (report_path, junit_path) = write_reports(out_dir, &report)?;
     Ok(BatchSummary {
         report,
         trials_path,
@@ -191,11 +191,10 @@ fn remove_reports(out_dir: &Path) -> Result<(), BatchError> {
     Ok(())
 }
 
-/// Writes `report.json` and `junit.xml` for `records` into `out_dir`; returns their paths.
+/// Writes `report.json` and `junit.xml` of `report` into `out_dir`; returns their paths.
 pub fn write_reports(
     out_dir: &Path,
     report: &BatchReport,
-    records: &[TrialRecord],
 ) -> Result<(PathBuf, PathBuf), BatchError> {
     let report_path = out_dir.join(REPORT_FILE);
     let mut json = serde_json::to_string_pretty(report).map_err(|source| BatchError::Json {
@@ -205,7 +204,7 @@ pub fn write_reports(
     json.push('\n');
     write_whole(&report_path, json.as_bytes())?;
     let junit_path = out_dir.join(JUNIT_FILE);
-    write_whole(&junit_path, junit_xml(report, records).as_bytes())?;
+    write_whole(&junit_path, junit_xml(report).as_bytes())?;
     Ok((report_path, junit_path))
 }
 

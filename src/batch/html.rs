@@ -1,16 +1,16 @@
-//! `report.html`: one self-contained page (no scripts, no network) over one or more batches:
-//! the summary table, success with its Wilson interval per batch, failures by reason, the
+//! `report.html`: one self-contained page (no scripts, no network) over one or more batches,
+//! rendered from their [`BatchReport`]s alone (the records are not read again; the camera
+//! frames are read from each batch's `images/`): the summary table, success with its Wilson interval per batch, failures by reason, the
 //! accept/reject and type confusion matrices, measured against true roundness, a histogram of
-//! cycle times (the plots drawn by `plotters` into inline SVG), and every failed or misjudged
+//! the sorted parts' cycle times (the plots drawn by `plotters` into inline SVG), and every failed or misjudged
 //! trial with its camera frame embedded.
 
 use std::fmt::Write as _;
 use std::fs;
 use std::path::{Path, PathBuf};
 
-use super::html_trials::{PageSorting, TrialCard, cards_html, read_records, trial_card};
-use super::suite::BatchRow;
-use super::{BatchReport, Outcome, Perception, xml_escape};
+use super::html_trials::{PageSorting, TrialCard, cards_html, trial_card};
+use super::{BatchReport, Perception, xml_escape};
 use crate::scenario::Scenario;
 
 /// File name of the page.
@@ -27,9 +27,9 @@ pub enum HtmlError {
         /// What went wrong.
         reason: String,
     },
-    /// A batch's trial records could not be read.
-    #[error("cannot read trial records: {reason}: {}", path.display())]
-    Records {
+    /// A saved camera frame could not be read.
+    #[error("cannot read a camera frame: {reason}: {}", path.display())]
+    Image {
         /// The file.
         path: PathBuf,
         /// What went wrong.
@@ -71,17 +71,28 @@ impl RoundnessLimits {
     }
 }
 
+/// One batch of a page: its label, its output directory (for the camera frames) and its report.
+#[derive(Debug, Clone)]
+pub struct PageBatch {
+    /// The batch's label on the page (scenario or grid point).
+    pub label: String,
+    /// The batch's output directory.
+    pub dir: PathBuf,
+    /// The batch's report, as built from its records.
+    pub report: BatchReport,
+}
+
 /// What a page shows: a title, a note on the perception mode, labelled batches, and what their
-/// records say.
+/// reports say.
 #[derive(Debug, Clone)]
 pub struct HtmlPage {
     /// Page title.
     pub title: String,
     /// The perception mode's note.
     pub note: String,
-    /// One labelled row per batch (scenario or grid point).
-    pub rows: Vec<(String, BatchRow)>,
-    /// Cycle times of every successful trial over the batches, s.
+    /// One labelled batch per row (scenario or grid point).
+    pub rows: Vec<PageBatch>,
+    /// The pick cycles of every sorted part over the batches, s.
     pub cycle_times_s: Vec<f64>,
     /// Decisions against the truth over the batches.
     pub sorting: PageSorting,
@@ -91,53 +102,36 @@ pub struct HtmlPage {
     pub cards: Vec<TrialCard>,
 }
 
-/// Simulated cycle times of the sorted parts in `dir/trials.jsonl` (each part's own, as in
-/// `report.json`'s `cycle_time_s`), s.
-pub fn successful_cycle_times(dir: &Path) -> Result<Vec<f64>, HtmlError> {
-    Ok(read_records(dir)?
-        .iter()
-        .flat_map(sorted_cycle_times)
-        .collect())
-}
-
-/// The pick cycles of `record`'s sorted parts, s.
-fn sorted_cycle_times(record: &crate::outcome::TrialRecord) -> Vec<f64> {
-    record
-        .parts()
-        .iter()
-        .filter(|p| p.outcome == Outcome::Success)
-        .map(|p| p.cycle_time_s)
-        .collect()
-}
-
 impl HtmlPage {
-    /// The page of one batch (`twincell run`) whose files are in `dir`.
+    /// The page of one batch (`twincell run`, `twincell merge`) whose files are in `dir`.
     pub fn for_batch(report: &BatchReport, dir: &Path) -> Result<Self, HtmlError> {
         let title = format!("twincell run: {} (seed {})", report.scenario, report.seed);
-        let rows = vec![(report.scenario.clone(), BatchRow::from_report(report, "."))];
+        let batch = PageBatch {
+            label: report.scenario.clone(),
+            dir: dir.to_path_buf(),
+            report: report.clone(),
+        };
         Ok(Self {
             note: report.perception_note.clone(),
-            ..Self::for_rows(&title, report.perception, rows, dir)?
+            ..Self::for_batches(&title, report.perception, vec![batch])?
         })
     }
 
-    /// The page of several batches run with `perception`, each row's files in
-    /// `root/row.dir`.
-    pub fn for_rows(
+    /// The page of several batches run with `perception`.
+    pub fn for_batches(
         title: &str,
         perception: Perception,
-        rows: Vec<(String, BatchRow)>,
-        root: &Path,
+        rows: Vec<PageBatch>,
     ) -> Result<Self, HtmlError> {
         let mut cycle_times_s = Vec::new();
         let mut sorting = PageSorting::default();
         let mut cards = Vec::new();
-        for (label, row) in &rows {
-            let dir = root.join(&row.dir);
-            for record in read_records(&dir)? {
-                cycle_times_s.extend(sorted_cycle_times(&record));
-                sorting.add(&record);
-                cards.extend(trial_card(label, &dir, perception, &record)?);
+        for batch in &rows {
+            let listing = &batch.report.listing;
+            cycle_times_s.extend_from_slice(&listing.sorted_cycle_times_s);
+            sorting.add(&batch.report);
+            for trial in &listing.trials {
+                cards.extend(trial_card(&batch.label, &batch.dir, perception, trial)?);
             }
         }
         Ok(Self {
@@ -178,7 +172,12 @@ impl HtmlPage {
             note = xml_escape(&self.note)
         );
         html.push_str(&self.summary_table());
-        html.push_str(&super::html_faults::faults_table(&self.rows));
+        let faults: Vec<_> = self
+            .rows
+            .iter()
+            .map(|b| (b.label.as_str(), &b.report.faults))
+            .collect();
+        html.push_str(&super::html_faults::faults_table(&faults));
         html.push_str("<h2>Success with its Wilson 95 % interval</h2>\n<figure>");
         html.push_str(&self.success_svg()?);
         html.push_str("</figure>\n<h2>Failures by reason</h2>\n<figure>");
@@ -189,7 +188,7 @@ impl HtmlPage {
         html.push_str(&self.sorting.type_table());
         html.push_str("<h2>Measured against true roundness</h2>\n<figure>");
         html.push_str(&self.roundness_svg()?);
-        html.push_str("</figure>\n<h2>Cycle time of the successful trials</h2>\n<figure>");
+        html.push_str("</figure>\n<h2>Cycle time of the sorted parts</h2>\n<figure>");
         html.push_str(&self.cycle_svg()?);
         let _ = write!(
             html,
@@ -220,7 +219,13 @@ impl HtmlPage {
              <th>Wilson 95 %</th><th>strict</th><th>mean cycle, s</th><th>failures</th>\
              <th>gate</th></tr>\n",
         );
-        for (i, (label, row)) in self.rows.iter().enumerate() {
+        for (
+            i,
+            PageBatch {
+                label, report: row, ..
+            },
+        ) in self.rows.iter().enumerate()
+        {
             let failures: Vec<String> = row
                 .failures
                 .iter()
@@ -262,13 +267,25 @@ impl HtmlPage {
 mod tests {
     use super::super::html_trials::CardImage;
     use super::super::{
-        DecisionRecord, Misidentification, PartRecord, ReportMeta, StreamRecord, TRIALS_FILE,
+        DecisionRecord, Misidentification, PartRecord, ReportMeta, StreamPartRecord, StreamRecord,
         TrialRecord, trial_image_path,
     };
     use super::*;
-    use crate::outcome::FailureReason;
+    use crate::outcome::{FailureReason, Outcome};
 
-    fn row(successes: u32, failures: u32) -> BatchRow {
+    fn meta(perception: Perception, trials: u32) -> ReportMeta {
+        ReportMeta {
+            scenario: "s<&>".into(),
+            seed: 1,
+            perception,
+            scenario_trials: trials,
+            shard: None,
+            interrupted: false,
+            min_success: Some(0.9),
+        }
+    }
+
+    fn row(label: &str, successes: u32, failures: u32) -> PageBatch {
         let records: Vec<TrialRecord> = (0..successes + failures)
             .map(|i| {
                 let mut r = TrialRecord::failed(i, u64::from(i), FailureReason::Collision, "x");
@@ -280,19 +297,15 @@ mod tests {
                 r
             })
             .collect();
-        let meta = ReportMeta {
-            scenario: "s<&>".into(),
-            seed: 1,
-            perception: Perception::Oracle,
-            scenario_trials: successes + failures,
-            shard: None,
-            interrupted: false,
-            min_success: Some(0.9),
-        };
-        BatchRow::from_report(&BatchReport::from_records(&meta, &records), "d")
+        let meta = meta(Perception::Oracle, successes + failures);
+        PageBatch {
+            label: label.into(),
+            dir: PathBuf::from("d"),
+            report: BatchReport::from_records(&meta, &records),
+        }
     }
 
-    fn page(rows: Vec<(String, BatchRow)>, cycle_times_s: Vec<f64>) -> HtmlPage {
+    fn page(rows: Vec<PageBatch>, cycle_times_s: Vec<f64>) -> HtmlPage {
         HtmlPage {
             title: "t & t".into(),
             note: "oracle".into(),
@@ -307,7 +320,7 @@ mod tests {
     #[test]
     fn the_page_holds_the_table_and_four_plots_and_nothing_external() {
         let page = page(
-            vec![("a<b".into(), row(9, 1)), ("c".into(), row(3, 3))],
+            vec![row("a<b", 9, 1), row("c", 3, 3)],
             vec![17.0, 17.4, 18.2, 18.25],
         );
         let html = page.render().expect("page");
@@ -325,10 +338,10 @@ mod tests {
 
     #[test]
     fn an_empty_page_still_draws() {
-        let page = page(vec![("none".into(), row(0, 0))], Vec::new());
+        let page = page(vec![row("none", 0, 0)], Vec::new());
         let html = page.render().expect("page");
         assert_eq!(html.matches("<svg").count(), 4);
-        assert!(html.contains("no failures") && html.contains("no successful trial"));
+        assert!(html.contains("no failures") && html.contains("no sorted part"));
         assert!(html.contains("no part measured") && html.contains("No trial failed"));
     }
 
@@ -348,40 +361,57 @@ mod tests {
         }
     }
 
-    fn decided(i: u32, part: PartRecord, detected: &str, measured_mm: f64) -> TrialRecord {
+    fn decision(detected: &str, measured_mm: f64) -> DecisionRecord {
         let accept = measured_mm <= 0.5;
-        let mut r = TrialRecord::failed(i, u64::from(i) + 100, FailureReason::WrongBin, "w");
-        r.decision = Some(DecisionRecord {
+        DecisionRecord {
             detected_type: detected.into(),
             measured_roundness_mm: Some(measured_mm),
             measured_bore_diameter_mm: Some(28.1),
             accept,
             bin: if accept { "group_b" } else { "reject" }.into(),
             note: None,
-        });
-        r.placed_bin = Some(r.decision.as_ref().map_or(String::new(), |d| d.bin.clone()));
-        if accept == part.truly_acceptable || !part.clear_cut {
+        }
+    }
+
+    fn decided(i: u32, part: PartRecord, detected: &str, measured_mm: f64) -> TrialRecord {
+        let mut r = TrialRecord::failed(i, u64::from(i) + 100, FailureReason::WrongBin, "w");
+        let decision = decision(detected, measured_mm);
+        r.placed_bin = Some(decision.bin.clone());
+        if decision.accept == part.truly_acceptable || !part.clear_cut {
             r.outcome = Outcome::Success;
             r.failure = None;
             r.detail = None;
             r.cycle_time_s = 18.0;
         }
+        r.decision = Some(decision);
         r.part = Some(part);
         r
     }
 
-    /// A batch directory with records of every kind the page reads, and one camera frame.
-    fn batch_dir(name: &str) -> std::path::PathBuf {
+    /// Records of every kind the page shows, and a batch directory with one camera frame.
+    fn batch(name: &str) -> (PathBuf, Vec<TrialRecord>) {
         let dir = std::env::temp_dir().join(format!("twincell-html-{name}-{}", std::process::id()));
         let _ = fs::remove_dir_all(&dir);
         fs::create_dir_all(&dir).expect("dir");
+        // A stream that sorted one part before it took a bottle for a part and halted.
         let mut stream = TrialRecord::failed(4, 104, FailureReason::Misidentified, "took it");
+        stream.cycle_time_s = 30.0;
+        let sorted = part("axle_a20", 0.1);
         stream.stream = Some(StreamRecord {
             parts_planned: 3,
-            parts_sorted: 0,
+            parts_sorted: 1,
             bottles_passed: 2,
             belt_stops: 3,
-            parts: Vec::new(),
+            parts: vec![StreamPartRecord {
+                index: 0,
+                outcome: Outcome::Success,
+                failure: None,
+                detail: None,
+                placed_bin: Some(sorted.correct_bin.clone()),
+                part: sorted,
+                decision: Some(decision("axle_a20", 0.11)),
+                cycle_time_s: 7.5,
+            }],
             misidentified: Some(Misidentification {
                 truth: "bottle".into(),
                 identified: "axle_b28".into(),
@@ -389,7 +419,7 @@ mod tests {
         });
         let mut missed = TrialRecord::failed(5, 105, FailureReason::NotDetected, "nothing");
         missed.part = Some(part("axle_b32", 0.1));
-        let records = [
+        let records = vec![
             decided(0, part("axle_b28", 0.2), "axle_b28", 0.21),
             // Wrong verdict, clear-cut: a failure.
             decided(1, part("axle_b28", 0.8), "axle_b28", 0.45),
@@ -400,11 +430,6 @@ mod tests {
             stream,
             missed,
         ];
-        let text: String = records
-            .iter()
-            .map(|r| serde_json::to_string(r).expect("json") + "\n")
-            .collect();
-        fs::write(dir.join(TRIALS_FILE), text).expect("records");
         let image = image::RgbImage::from_pixel(32, 24, image::Rgb([200, 10, 10]));
         let mut jpeg = Vec::new();
         image::codecs::jpeg::JpegEncoder::new(&mut jpeg)
@@ -413,40 +438,48 @@ mod tests {
         let path = trial_image_path(&dir, 1);
         fs::create_dir_all(path.parent().expect("parent")).expect("images dir");
         fs::write(path, jpeg).expect("image");
-        dir
+        (dir, records)
     }
 
     #[test]
-    fn the_page_reads_decisions_and_frames_from_the_records() {
-        let dir = batch_dir("camera");
-        let page = HtmlPage::for_rows("t", Perception::Camera, vec![("b".into(), row(1, 0))], &dir)
-            .map(|p| {
-                p.with_roundness_limits(Some(RoundnessLimits {
-                    tolerance_mm: 0.5,
-                    uncertainty_mm: 0.05,
-                }))
-            });
-        // The row's dir is "d", which does not exist: the records are read from there.
-        assert!(page.is_err());
-        let mut only = row(1, 0);
-        only.dir = ".".into();
-        let page = HtmlPage::for_rows("t", Perception::Camera, vec![("b".into(), only)], &dir)
+    fn the_page_shows_what_the_report_of_the_records_says() {
+        let (dir, records) = batch("camera");
+        let report = BatchReport::from_records(&meta(Perception::Camera, 6), &records);
+        let page = HtmlPage::for_batch(&report, &dir)
             .expect("page")
             .with_roundness_limits(Some(RoundnessLimits {
                 tolerance_mm: 0.5,
                 uncertainty_mm: 0.05,
             }));
+        // The figures report.json holds, read from the same report.
+        assert_eq!(page.sorting.accept_reject, report.sorting.accept_reject);
+        assert_eq!(page.sorting.in_band, report.sorting.in_band.parts);
         let c = &page.sorting.accept_reject;
-        assert_eq!((c.truly_accept.accept, c.truly_accept.reject), (2, 1));
+        assert_eq!((c.truly_accept.accept, c.truly_accept.reject), (3, 1));
         assert_eq!((c.truly_reject.accept, c.truly_reject.reject), (1, 0));
         assert_eq!(page.sorting.in_band, 1);
+        // The histogram counts each sorted part's pick cycle, as report.json's cycle_time_s
+        // does: the stream's sorted part too, though its trial failed.
+        let mut cycles = page.cycle_times_s.clone();
+        cycles.sort_by(f64::total_cmp);
+        assert_eq!(cycles, [7.5, 18.0, 18.0, 18.0]);
+        let cycle = report.cycle_time_s.as_ref().expect("sorted parts");
+        assert_eq!(cycle.count as usize, cycles.len());
+        assert_eq!(cycle.mean, cycles.iter().sum::<f64>() / 4.0);
         let types = &page.sorting.types;
+        assert_eq!(types["axle_a20"]["axle_a20"], 1);
         assert_eq!(types["axle_b28"]["axle_b28"], 3);
         assert_eq!(types["axle_b32"]["axle_b28"], 1);
         assert_eq!(types["axle_b32"]["not detected"], 1);
         assert_eq!(types["bottle"]["bottle"], 2);
         assert_eq!(types["bottle"]["axle_b28"], 1);
-        assert_eq!(page.sorting.roundness_mm.len(), 4);
+        // The decided parts' types are report.json's part_type matrix.
+        for (truth, row) in &report.sorting.part_type {
+            for (detected, n) in row {
+                assert_eq!(types[truth][detected], *n, "{truth} {detected}");
+            }
+        }
+        assert_eq!(page.sorting.roundness_mm.len(), 5);
         // Failed (1, 4, 5) and misjudged (2, 3) trials get cards, in trial order; only trial 1
         // has a frame on disk.
         let cards: Vec<(u32, &str)> = page
@@ -481,10 +514,26 @@ mod tests {
         assert_eq!(html.matches("no camera frame").count(), 4);
         assert_eq!(html.matches("<table class=\"cm\">").count(), 2);
         assert!(html.contains("<th>not detected</th>") && html.contains("<th>bottle</th>"));
-        let oracle = HtmlPage::for_rows("t", Perception::Oracle, page.rows.clone(), &dir)
-            .expect("page")
-            .render()
-            .expect("render");
+        // Another directory has no frames: the cards say so.
+        let elsewhere = HtmlPage::for_batch(&report, &dir.join("nowhere")).expect("page");
+        assert!(
+            elsewhere
+                .cards
+                .iter()
+                .all(|c| c.image == CardImage::Missing)
+        );
+        let oracle = HtmlPage::for_batches(
+            "t",
+            Perception::Oracle,
+            vec![PageBatch {
+                label: "b".into(),
+                dir: dir.clone(),
+                report,
+            }],
+        )
+        .expect("page")
+        .render()
+        .expect("render");
         assert_eq!(
             oracle.matches("oracle perception: no camera image").count(),
             5

@@ -3,20 +3,23 @@
 
 use std::fmt::Write as _;
 
-use super::junit::xml_escape;
-use super::suite::BatchRow;
+use std::collections::BTreeMap;
 
-/// The faults table of `rows`, with its heading; empty when no fault struck in any batch.
-pub(super) fn faults_table(rows: &[(String, BatchRow)]) -> String {
-    if rows.iter().all(|(_, row)| row.faults.is_empty()) {
+use super::junit::xml_escape;
+use crate::outcome::{FaultKind, FaultTally};
+
+/// The faults table of the labelled batches `rows`, with its heading; empty when no fault
+/// struck in any of them.
+pub(super) fn faults_table(rows: &[(&str, &BTreeMap<FaultKind, FaultTally>)]) -> String {
+    if rows.iter().all(|(_, faults)| faults.is_empty()) {
         return String::new();
     }
     let mut out = String::from(
         "<h2>Faults injected</h2>\n<table><tr><th>batch</th><th>fault</th><th>injected</th>\
          <th>recovered</th><th>share</th><th>parts lost</th></tr>\n",
     );
-    for (label, row) in rows {
-        for (kind, tally) in &row.faults {
+    for (label, faults) in rows {
+        for (kind, tally) in *faults {
             let share = tally
                 .recovered_share()
                 .map_or("-".to_owned(), |s| format!("{s:.3}"));

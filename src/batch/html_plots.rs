@@ -24,9 +24,9 @@ fn last_segment(count: u32) -> u32 {
 impl HtmlPage {
     /// Short x labels: the rows' labels when they are short, else their numbers.
     pub(super) fn x_label(&self, i: usize) -> String {
-        let long = self.rows.iter().any(|(label, _)| label.len() > 22);
+        let long = self.rows.iter().any(|b| b.label.len() > 22);
         match self.rows.get(i) {
-            Some((label, _)) if !long => label.clone(),
+            Some(b) if !long => b.label.clone(),
             Some(_) => format!("#{i}"),
             None => String::new(),
         }
@@ -63,13 +63,13 @@ impl HtmlPage {
                 .rows
                 .iter()
                 .enumerate()
-                .map(|(i, (_, r))| (at(i), r.wilson95[1]))
+                .map(|(i, b)| (at(i), b.report.wilson95[1]))
                 .chain(
                     self.rows
                         .iter()
                         .enumerate()
                         .rev()
-                        .map(|(i, (_, r))| (at(i), r.wilson95[0])),
+                        .map(|(i, b)| (at(i), b.report.wilson95[0])),
                 )
                 .collect();
             chart
@@ -79,7 +79,7 @@ impl HtmlPage {
                 .rows
                 .iter()
                 .enumerate()
-                .map(|(i, (_, r))| (at(i), r.success_rate))
+                .map(|(i, b)| (at(i), b.report.success_rate))
                 .collect();
             chart
                 .draw_series(std::iter::once(PathElement::new(
@@ -88,7 +88,8 @@ impl HtmlPage {
                 )))
                 .map_err(&err)?;
             chart
-                .draw_series(self.rows.iter().enumerate().map(|(i, (_, r))| {
+                .draw_series(self.rows.iter().enumerate().map(|(i, b)| {
+                    let r = &b.report;
                     PathElement::new(
                         vec![(at(i), r.wilson95[0]), (at(i), r.wilson95[1])],
                         BLACK.stroke_width(1),
@@ -97,10 +98,9 @@ impl HtmlPage {
                 .map_err(&err)?;
             chart
                 .draw_series(
-                    self.rows
-                        .iter()
-                        .enumerate()
-                        .map(|(i, (_, r))| Circle::new((at(i), r.success_rate), 4, BLUE.filled())),
+                    self.rows.iter().enumerate().map(|(i, b)| {
+                        Circle::new((at(i), b.report.success_rate), 4, BLUE.filled())
+                    }),
                 )
                 .map_err(&err)?;
             root.present().map_err(&err)?;
@@ -111,8 +111,8 @@ impl HtmlPage {
     pub(super) fn failures_svg(&self) -> Result<String, HtmlError> {
         let err = plot_error("failures");
         let mut totals: BTreeMap<&str, u32> = BTreeMap::new();
-        for (_, row) in &self.rows {
-            for (reason, n) in &row.failures {
+        for batch in &self.rows {
+            for (reason, n) in &batch.report.failures {
                 *totals.entry(reason.as_str()).or_default() += n;
             }
         }
@@ -201,11 +201,11 @@ impl HtmlPage {
                 .label_style(("sans-serif", 13))
                 .axis_desc_style(("sans-serif", 14))
                 .x_desc(if times.is_empty() {
-                    "no successful trial"
+                    "no sorted part"
                 } else {
-                    "simulated cycle time, s"
+                    "simulated pick cycle, s"
                 })
-                .y_desc("trials")
+                .y_desc("sorted parts")
                 .draw()
                 .map_err(&err)?;
             chart

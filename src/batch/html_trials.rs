@@ -1,6 +1,7 @@
-//! What `report.html` reads from the batches' records beyond their headline rows: the sorter's
+//! What `report.html` shows of its batches' trials beyond their headline rows: the sorter's
 //! decisions against the truth (the confusion matrices and the roundness scatter) and a card for
-//! every failed or misjudged trial, with its camera frame from `images/`.
+//! every failed or misjudged trial, with its camera frame from `images/`; all read from the
+//! batches' [`BatchReport`]s.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::fmt::Write as _;
@@ -10,35 +11,11 @@ use std::path::Path;
 
 use base64::Engine as _;
 
+use super::batch_listing::{BOTTLE, NOT_DETECTED};
 use super::html::HtmlError;
-use super::trial_images::{decision_misjudged, trial_image_path, wants_image};
-use super::{
-    AcceptConfusion, DecisionRecord, FailureReason, Outcome, PartRecord, Perception, TRIALS_FILE,
-    TrialRecord, xml_escape,
-};
-
-/// The label of an item nothing was detected for, in the type matrix.
-pub const NOT_DETECTED: &str = "not detected";
-/// The label of the bottle, a true item and a detector class.
-pub const BOTTLE: &str = "bottle";
-
-/// The trial records in `dir/trials.jsonl`.
-pub fn read_records(dir: &Path) -> Result<Vec<TrialRecord>, HtmlError> {
-    let path = dir.join(TRIALS_FILE);
-    let text = fs::read_to_string(&path).map_err(|e| HtmlError::Records {
-        path: path.clone(),
-        reason: e.to_string(),
-    })?;
-    text.lines()
-        .filter(|l| !l.trim().is_empty())
-        .map(|line| {
-            serde_json::from_str(line).map_err(|e| HtmlError::Records {
-                path: path.clone(),
-                reason: e.to_string(),
-            })
-        })
-        .collect()
-}
+use super::trial_images::trial_image_path;
+use super::trial_summary::TrialSummary;
+use super::{AcceptConfusion, BatchReport, Perception, xml_escape};
 
 /// The sorter's decisions against the truth, over every batch of a page.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -56,56 +33,23 @@ pub struct PageSorting {
 }
 
 impl PageSorting {
-    fn add_decided(&mut self, part: &PartRecord, decision: &DecisionRecord) {
-        let truth = if part.truly_acceptable {
-            &mut self.accept_reject.truly_accept
-        } else {
-            &mut self.accept_reject.truly_reject
-        };
-        if decision.accept {
-            truth.accept += 1;
-        } else {
-            truth.reject += 1;
-        }
-        self.in_band += u32::from(!part.clear_cut);
-        self.add_type(&part.part_type, &decision.detected_type, 1);
-        if let Some(measured) = decision.measured_roundness_mm {
-            let right = decision.accept == part.truly_acceptable;
-            self.roundness_mm
-                .push(([part.true_roundness_mm, measured], right));
-        }
-    }
-
-    fn add_type(&mut self, truth: &str, identified: &str, n: u32) {
-        if n > 0 {
-            *self
-                .types
-                .entry(truth.to_owned())
-                .or_default()
-                .entry(identified.to_owned())
-                .or_default() += n;
-        }
-    }
-
-    /// Adds what `record` says: every decided part, a single part not detected, a stream's
-    /// bottles let through and its item taken for something else.
-    pub fn add(&mut self, record: &TrialRecord) {
-        for p in record.parts() {
-            if let Some(decision) = p.decision {
-                self.add_decided(p.part, decision);
+    /// Adds what `report` says: its accept/reject counts and band from `report.json`'s
+    /// `sorting`, its identifications and measured parts from its listing.
+    pub fn add(&mut self, report: &BatchReport) {
+        let (sum, more) = (&mut self.accept_reject, &report.sorting.accept_reject);
+        sum.truly_accept.accept += more.truly_accept.accept;
+        sum.truly_accept.reject += more.truly_accept.reject;
+        sum.truly_reject.accept += more.truly_reject.accept;
+        sum.truly_reject.reject += more.truly_reject.reject;
+        self.in_band += report.sorting.in_band.parts;
+        for (truth, row) in &report.listing.identified {
+            let ours = self.types.entry(truth.clone()).or_default();
+            for (identified, n) in row {
+                *ours.entry(identified.clone()).or_default() += n;
             }
         }
-        if let (Some(part), None, Some(FailureReason::NotDetected)) =
-            (&record.part, &record.decision, record.failure)
-        {
-            self.add_type(&part.part_type, NOT_DETECTED, 1);
-        }
-        if let Some(stream) = &record.stream {
-            self.add_type(BOTTLE, BOTTLE, stream.bottles_passed);
-            if let Some(m) = &stream.misidentified {
-                self.add_type(&m.truth, &m.identified, 1);
-            }
-        }
+        self.roundness_mm
+            .extend_from_slice(&report.listing.roundness_mm);
     }
 
     /// The accept/reject matrix as an HTML table.
@@ -237,86 +181,27 @@ pub struct TrialCard {
     pub image: CardImage,
 }
 
-/// Truth and decision of `part` in words.
-fn judgement(part: &PartRecord, decision: Option<&DecisionRecord>, placed: Option<&str>) -> String {
-    let verdict = |accept: bool| if accept { "accept" } else { "reject" };
-    let mut text = format!(
-        "truth: {} roundness {:.3} mm ({}), bore {:.2} mm, belongs in {}",
-        part.part_type,
-        part.true_roundness_mm,
-        verdict(part.truly_acceptable),
-        part.true_bore_diameter_mm,
-        part.correct_bin
-    );
-    match decision {
-        Some(d) => {
-            let measured = d
-                .measured_roundness_mm
-                .map_or("not measured".to_owned(), |r| {
-                    format!("roundness {r:.3} mm")
-                });
-            let bore = d
-                .measured_bore_diameter_mm
-                .map_or(String::new(), |b| format!(", bore {b:.2} mm"));
-            let misjudged = if decision_misjudged(part, d) {
-                " (misjudged)"
-            } else {
-                ""
-            };
-            let _ = write!(
-                text,
-                "; decided: {} {measured}{bore} -> {}{misjudged}",
-                d.detected_type,
-                verdict(d.accept)
-            );
-        }
-        None => text.push_str("; no decision"),
-    }
-    let _ = write!(text, "; placed in {}", placed.unwrap_or("no bin"));
-    text
-}
-
-/// The card of `record` (from batch `batch` in `dir`, run with `perception`), when it wants
-/// one.
+/// The card of `trial` (from batch `batch` in `dir`, run with `perception`), when it wants
+/// one: when it failed or a decision in it went against the truth.
 pub fn trial_card(
     batch: &str,
     dir: &Path,
     perception: Perception,
-    record: &TrialRecord,
+    trial: &TrialSummary,
 ) -> Result<Option<TrialCard>, HtmlError> {
-    if !wants_image(record) {
+    let Some(judgement) = &trial.judgement else {
         return Ok(None);
-    }
-    let reason = match (record.outcome, record.failure) {
-        (Outcome::Failure, Some(f)) => f.as_str().to_owned(),
-        (Outcome::Failure, None) => "unspecified".to_owned(),
-        (Outcome::Success, _) => "misjudged".to_owned(),
     };
-    // A stream names its first failed or misjudged part; a single-part trial its one part.
-    let parts = record.parts();
-    let shown = match &record.stream {
-        Some(_) => parts.iter().find(|p| {
-            p.outcome == Outcome::Failure
-                || p.decision.is_some_and(|d| decision_misjudged(p.part, d))
-        }),
-        None => parts.first(),
-    };
-    let part = shown.map(|p| {
-        let judged = judgement(p.part, p.decision, p.placed_bin);
-        match &record.stream {
-            Some(_) => format!("part {}: {judged}", p.index),
-            None => judged,
-        }
-    });
+    let reason = trial.failure_reason().unwrap_or("misjudged");
     let image = match perception {
         Perception::Oracle => CardImage::Oracle,
         Perception::Camera => {
-            let path = trial_image_path(dir, record.trial);
+            let path = trial_image_path(dir, trial.trial);
             match fs::read(&path) {
                 Ok(bytes) => CardImage::Jpeg(bytes),
                 Err(err) if err.kind() == io::ErrorKind::NotFound => CardImage::Missing,
                 Err(err) => {
-                    return Err(HtmlError::Records {
+                    return Err(HtmlError::Image {
                         path,
                         reason: err.to_string(),
                     });
@@ -326,11 +211,11 @@ pub fn trial_card(
     };
     Ok(Some(TrialCard {
         batch: batch.to_owned(),
-        trial: record.trial,
-        seed: record.seed,
-        reason,
-        detail: record.detail.clone().unwrap_or_default(),
-        judgement: part.unwrap_or_else(|| "no part reached the pick station".to_owned()),
+        trial: trial.trial,
+        seed: trial.seed,
+        reason: reason.to_owned(),
+        detail: trial.detail.clone().unwrap_or_default(),
+        judgement: judgement.clone(),
         image,
     }))
 }

@@ -2,7 +2,7 @@
 
 use std::fmt::Write as _;
 
-use super::{BatchReport, Outcome, TrialRecord};
+use super::BatchReport;
 
 /// Text made safe for XML 1.0 content and attribute values.
 ///
@@ -34,14 +34,15 @@ pub fn testcase_name(index: u32) -> String {
     format!("trial_{index:04}")
 }
 
-/// `junit.xml` for `records` (written in the given order), summarised by `report`.
+/// `junit.xml` for `report`: its figures and its listed trials, in the listing's order.
 ///
 /// One `<testsuite>` named after the scenario; each trial is a `<testcase>` whose `time` is its
 /// wall-clock seconds; a failed trial carries `<failure message="reason" type="reason">detail`.
-pub fn junit_xml(report: &BatchReport, records: &[TrialRecord]) -> String {
+pub fn junit_xml(report: &BatchReport) -> String {
     let suite = xml_escape(&report.scenario);
     let failures = report.trials - report.successes;
-    let total_s: f64 = records.iter().map(|r| r.timing.wall_ms).sum::<f64>() / 1000.0;
+    let trials = &report.listing.trials;
+    let total_s: f64 = trials.iter().map(|t| t.wall_ms).sum::<f64>() / 1000.0;
     let mut out = String::new();
     // Writing to a String cannot fail; the results are ignored on purpose.
     let _ = writeln!(out, r#"<?xml version="1.0" encoding="UTF-8"?>"#);
@@ -73,18 +74,17 @@ pub fn junit_xml(report: &BatchReport, records: &[TrialRecord]) -> String {
         );
     }
     let _ = writeln!(out, "    </properties>");
-    for record in records {
-        let name = testcase_name(record.trial);
-        let time_s = record.timing.wall_ms / 1000.0;
-        if record.outcome == Outcome::Success {
+    for trial in trials {
+        let name = testcase_name(trial.trial);
+        let time_s = trial.wall_ms / 1000.0;
+        let Some(reason) = trial.failure_reason() else {
             let _ = writeln!(
                 out,
                 r#"    <testcase name="{name}" classname="{suite}" time="{time_s:.3}"/>"#
             );
             continue;
-        }
-        let reason = record.failure.map_or("unspecified", |f| f.as_str());
-        let detail = xml_escape(record.detail.as_deref().unwrap_or(""));
+        };
+        let detail = xml_escape(trial.detail.as_deref().unwrap_or(""));
         let _ = writeln!(
             out,
             r#"    <testcase name="{name}" classname="{suite}" time="{time_s:.3}">"#

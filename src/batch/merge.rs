@@ -368,7 +368,7 @@ pub fn merge_shards(
         min_success,
     };
     let report = BatchReport::from_records(&meta, &records);
-    let (report_path, junit_path) = write_reports(out_dir, &report, &records)?;
+    let (report_path, junit_path) = write_reports(out_dir, &report)?;
     Ok(MergeSummary {
         missing_trials: header.scenario_trials.saturating_sub(report.trials),
         report,

@@ -1,6 +1,7 @@
 //! Batches of sorting trials: running trials in parallel and deterministically, streaming their
 //! records (`crate::outcome`) to disk, and the reports built from them.
 
+mod batch_listing;
 mod batch_manifest;
 mod batch_plan;
 mod batch_runner;
@@ -21,12 +22,14 @@ mod suite;
 mod summary_table;
 mod sweep;
 mod trial_images;
+mod trial_summary;
 
 pub use crate::outcome::{
     DecisionRecord, FailureReason, Misidentification, Outcome, PartRecord, Perception,
     StreamPartRecord, StreamRecord, TrialRecord, TrialRunner, TrialTiming,
 };
 
+pub use batch_listing::{BOTTLE, BatchListing, NOT_DETECTED};
 pub use batch_manifest::{BatchManifest, MANIFEST_FILE};
 pub use batch_plan::{BatchPlan, Shard, ShardError, trial_seed};
 pub use batch_runner::{
@@ -34,8 +37,8 @@ pub use batch_runner::{
     write_reports,
 };
 pub use error::BatchError;
-pub use html::{HTML_FILE, HtmlError, HtmlPage, RoundnessLimits, successful_cycle_times};
-pub use html_trials::{BOTTLE, CardImage, NOT_DETECTED, PageSorting, TrialCard, read_records};
+pub use html::{HTML_FILE, HtmlError, HtmlPage, PageBatch, RoundnessLimits};
+pub use html_trials::{CardImage, PageSorting, TrialCard};
 pub use interrupt::cancel_on_signals;
 pub use junit::{junit_xml, testcase_name, xml_escape};
 pub use merge::{MergeError, MergeSummary, merge_shards};
@@ -54,3 +57,4 @@ pub use trial_images::{
     IMAGES_DIR, THUMBNAIL_WIDTH_PX, TrialImages, annotated_thumbnail, copy_trial_images,
     decision_misjudged, remove_trial_images, trial_image_path, wants_image,
 };
+pub use trial_summary::TrialSummary;

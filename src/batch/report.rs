@@ -4,6 +4,7 @@ use std::collections::BTreeMap;
 
 use serde::{Deserialize, Serialize};
 
+use super::batch_listing::BatchListing;
 use super::{Outcome, Perception, Shard, TrialRecord, TrialTiming};
 use crate::outcome::{FaultKind, FaultTally};
 
@@ -133,10 +134,11 @@ pub struct BandCounts {
     pub rejected: u32,
 }
 
-/// Simulated cycle-time statistics over the successful trials, s.
+/// Simulated cycle-time statistics over the sorted parts (a successful single-part trial's
+/// part, each sorted part of a stream), s.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct CycleTime {
-    /// Successful trials counted.
+    /// Sorted parts counted.
     pub count: u32,
     /// Mean, s.
     pub mean: f64,
@@ -209,7 +211,8 @@ pub struct StreamSummary {
     pub belt_stops: u32,
 }
 
-/// The contents of `report.json`.
+/// The contents of `report.json`, and the listing of trials and parts that `junit.xml` and
+/// `report.html` show with it: the one source every report of a batch is rendered from.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct BatchReport {
     /// Scenario name.
@@ -253,10 +256,11 @@ pub struct BatchReport {
     pub metrology: Metrology,
     /// Decisions vs truth.
     pub sorting: Sorting,
-    /// Simulated cycle time of the successful trials; `null` when none succeeded.
+    /// Simulated pick cycle of the sorted parts; `null` when none was sorted.
     pub cycle_time_s: Option<CycleTime>,
-    /// Successful parts per minute of simulated cycle time: `successes / (sum over all
-    /// recorded trials of cycle_time_s / 60)`. Failed trials count in the denominator
+    /// Sorted parts per minute of simulated cycle time: `sorted parts / (sum over all
+    /// recorded trials of cycle_time_s / 60)`, a trial's `cycle_time_s` being a stream's whole
+    /// run. Failed trials count in the denominator
     /// because they occupy the cell too; `null` when the summed cycle time is 0.
     pub parts_per_minute: Option<f64>,
     /// Per-part figures of stream trials; absent when no trial was a stream.
@@ -270,6 +274,10 @@ pub struct BatchReport {
     pub gate: Option<Gate>,
     /// Wall-clock figures (not deterministic).
     pub timing: Timing,
+    /// The trials and parts behind the figures, for `junit.xml` and `report.html`; not part
+    /// of `report.json` (empty in a report read back from one).
+    #[serde(skip)]
+    pub listing: BatchListing,
 }
 
 /// Nearest-rank percentile `q` in (0, 1] of ascending `sorted`; `None` when empty.
@@ -416,38 +424,19 @@ impl BatchReport {
                 .or_insert(0) += 1;
         }
 
-        // Cycle time per sorted part.
-        let mut cycle_times: Vec<f64> = records
-            .iter()
-            .flat_map(|r| r.parts())
-            .filter(|p| p.outcome == Outcome::Success)
-            .map(|p| p.cycle_time_s)
-            .collect();
-        cycle_times.sort_by(f64::total_cmp);
-        let cycle_time_s = match (
-            percentile(&cycle_times, 0.5),
-            percentile(&cycle_times, 0.95),
-        ) {
+        let listing = BatchListing::of(records);
+        let cycle_times = &listing.sorted_cycle_times_s;
+        let cycle_time_s = match (percentile(cycle_times, 0.5), percentile(cycle_times, 0.95)) {
             (Some(p50), Some(p95)) => Some(CycleTime {
                 count: count(cycle_times.len()),
-                mean: mean(&cycle_times),
+                mean: mean(cycle_times),
                 p50,
                 p95,
             }),
             _ => None,
         };
         let total_cycle_min = records.iter().map(|r| r.cycle_time_s).sum::<f64>() / 60.0;
-        let sorted_parts: u32 = records
-            .iter()
-            .map(|r| {
-                count(
-                    r.parts()
-                        .iter()
-                        .filter(|p| p.outcome == Outcome::Success)
-                        .count(),
-                )
-            })
-            .sum();
+        let sorted_parts = count(cycle_times.len());
         let parts_per_minute =
             (total_cycle_min > 0.0).then(|| f64::from(sorted_parts) / total_cycle_min);
         let stream = records.iter().any(|r| r.stream.is_some()).then(|| {
@@ -513,6 +502,7 @@ impl BatchReport {
                 batch_wall_s: None,
                 jobs: None,
             },
+            listing,
         }
     }
 }

@@ -130,20 +130,21 @@ fn faults_are_tallied_per_kind_and_absent_from_a_report_without_them() {
     let back: BatchReport = serde_json::from_value(json).expect("reads back");
     assert_eq!(back.faults, report.faults);
     // The page's table lists each kind that struck, and is left out when none did.
-    let rows = [("f<1>".to_owned(), BatchRow::from_report(&report, "."))];
-    let table = super::html_faults::faults_table(&rows);
+    let table = super::html_faults::faults_table(&[("f<1>", &report.faults)]);
     assert!(table.contains("<h2>Faults injected</h2>"), "{table}");
     assert!(
         table.contains(
             "<td>f&lt;1&gt;</td><td>gripper</td><td class=\"n\">2</td>\
-                        <td class=\"n\">1</td><td class=\"n\">0.500</td><td class=\"n\">1</td>"
+             <td class=\"n\">1</td><td class=\"n\">0.500</td><td class=\"n\">1</td>"
         ),
         "{table}"
     );
     assert!(table.contains("<td>camera</td>") && !table.contains("<td>belt</td>"));
-    let plain_rows = [(
-        "p".to_owned(),
-        BatchRow::from_report(&BatchReport::from_records(&meta, &records[2..]), "."),
-    )];
-    assert_eq!(super::html_faults::faults_table(&plain_rows), "");
+    let plain = BatchReport::from_records(&meta, &records[2..]);
+    assert_eq!(
+        super::html_faults::faults_table(&[("p", &plain.faults)]),
+        ""
+    );
+    // Suite and sweep rows carry the tally too.
+    assert_eq!(BatchRow::from_report(&report, ".").faults, report.faults);
 }

@@ -29,26 +29,35 @@ pub struct CellModel {
     ik: AnalyticIk,
 }
 
+impl UrdfSource {
+    /// The URDF `scenario` names in `robot.urdf`, read relative to `scenario_path`; `None` when
+    /// it names none (the built-in URDF).
+    pub fn of_scenario(
+        scenario: &Scenario,
+        scenario_path: &Path,
+    ) -> Result<Option<Self>, CellError> {
+        let Some(relative) = &scenario.robot.urdf else {
+            return Ok(None);
+        };
+        let path = scenario_path
+            .parent()
+            .unwrap_or(Path::new("."))
+            .join(relative);
+        let text = std::fs::read_to_string(&path).map_err(|e| {
+            CellError::Sim(SimError::Urdf {
+                reason: e.to_string(),
+                path: path.clone(),
+            })
+        })?;
+        Ok(Some(Self { path, text }))
+    }
+}
+
 impl CellModel {
     /// The model of `scenario`, read from `scenario_path` (which anchors a relative
     /// `robot.urdf`); the built-in URDF when the scenario names none.
     pub fn new(scenario: Scenario, scenario_path: &Path) -> Result<Self, CellError> {
-        let urdf = match &scenario.robot.urdf {
-            Some(relative) => {
-                let path = scenario_path
-                    .parent()
-                    .unwrap_or(Path::new("."))
-                    .join(relative);
-                let text = std::fs::read_to_string(&path).map_err(|e| {
-                    CellError::Sim(SimError::Urdf {
-                        reason: e.to_string(),
-                        path: path.clone(),
-                    })
-                })?;
-                Some(UrdfSource { path, text })
-            }
-            None => None,
-        };
+        let urdf = UrdfSource::of_scenario(&scenario, scenario_path)?;
         Self::with_urdf(scenario, urdf)
     }
 

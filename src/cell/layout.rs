@@ -159,7 +159,13 @@ impl Cell {
         let base = scenario.robot.base_xyz_m;
         let world_from_base = Isometry3::translation(base[0], base[1], base[2]);
         let urdf = model.urdf();
-        let arm = SimArm::from_urdf_str(&mut world, &urdf.text, &urdf.path, world_from_base)?;
+        let arm = SimArm::from_urdf_with(
+            &mut world,
+            &urdf.text,
+            &urdf.path,
+            Some(model.arm()),
+            world_from_base,
+        )?;
         let mut builder = Builder {
             world: &mut world,
             scenery: Vec::new(),
@@ -297,7 +303,7 @@ impl Cell {
         let scenery = builder.scenery;
 
         // The part, upstream of the photo-eye at a random lateral offset.
-        let part = PartInstance::draw(scenario, rng);
+        let part = PartInstance::draw(model.catalogue(), scenario.parts.max_roundness_mm, rng);
         let lateral = rng.range(
             -scenario.parts.max_lateral_offset_m,
             scenario.parts.max_lateral_offset_m,
@@ -350,8 +356,9 @@ impl Cell {
 
     /// Puts a newly drawn part on the belt at the spawn point (a stream's feeder); returns its
     /// index among the parts.
-    pub fn spawn_part(&mut self, scenario: &Scenario, rng: &mut SimRng) -> usize {
-        let part = PartInstance::draw(scenario, rng);
+    pub fn spawn_part(&mut self, model: &CellModel, rng: &mut SimRng) -> usize {
+        let scenario = model.scenario();
+        let part = PartInstance::draw(model.catalogue(), scenario.parts.max_roundness_mm, rng);
         let lateral = rng.range(
             -scenario.parts.max_lateral_offset_m,
             scenario.parts.max_lateral_offset_m,

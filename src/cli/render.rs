@@ -14,6 +14,7 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use clap::Args;
 use serde::Serialize;
+use twincell::cell::CellModel;
 use twincell::render::{CameraRig, ObjectTruth, Renderer, RendererOptions, Shot, dataset};
 use twincell::scenario::Scenario;
 
@@ -92,10 +93,10 @@ fn renderer_for(scenario: &Scenario) -> Result<Renderer> {
 /// Runs `twincell render`.
 pub fn run_render(args: &RenderArgs) -> Result<ExitCode> {
     let (scenario, rig) = load(&args.scenario, args.resolution.as_ref())?;
-    let urdf = twincell::render::shot::scenario_urdf(&scenario, &args.scenario)
+    let model = CellModel::new(scenario.clone(), &args.scenario)
         .map_err(|e| BadInput(format!("{}: {e}", args.scenario.display())))?;
     let mut renderer = renderer_for(&scenario)?;
-    let shot = Shot::pick_station(&scenario, urdf.as_ref(), &rig, &scenario.sensor, args.index)?;
+    let shot = Shot::pick_station(&model, &rig, &scenario.sensor, args.index)?;
     let image = shot.render(&mut renderer)?;
     let truths = shot.truth(&scenario);
     std::fs::create_dir_all(&args.out)
@@ -131,18 +132,11 @@ pub fn run_dataset(args: &DatasetArgs) -> Result<ExitCode> {
         return Err(BadInput("--count: must be at least 1".into()).into());
     }
     let (scenario, rig) = load(&args.scenario, args.resolution.as_ref())?;
-    let urdf = twincell::render::shot::scenario_urdf(&scenario, &args.scenario)
+    let model = CellModel::new(scenario.clone(), &args.scenario)
         .map_err(|e| BadInput(format!("{}: {e}", args.scenario.display())))?;
     let mut renderer = renderer_for(&scenario)?;
     let start = Instant::now();
-    let summary = dataset::export(
-        &scenario,
-        urdf.as_ref(),
-        &rig,
-        &mut renderer,
-        args.count,
-        &args.out,
-    )?;
+    let summary = dataset::export(&model, &rig, &mut renderer, args.count, &args.out)?;
     println!(
         "wrote {} train + {} val images to {} in {:.1} s; objects per class: {}",
         summary.train,

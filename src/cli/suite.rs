@@ -8,7 +8,8 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use anyhow::Result;
 use clap::Args;
 use twincell::batch::{
-    BatchRow, HtmlPage, RoundnessLimits, SuiteReport, cancel_on_signals, write_json_report,
+    BatchRow, HtmlPage, PageBatch, RoundnessLimits, SuiteReport, cancel_on_signals,
+    write_json_report,
 };
 use twincell::scenario::{Override, Scenario};
 
@@ -55,6 +56,7 @@ pub fn run(args: &SuiteArgs) -> Result<ExitCode> {
     let cancel = Arc::new(AtomicBool::new(false));
     cancel_on_signals(&cancel)?;
     let mut rows = Vec::with_capacity(files.len());
+    let mut batches = Vec::with_capacity(files.len());
     for (file, scenario) in files.iter().zip(scenarios) {
         if cancel.load(Ordering::SeqCst) {
             break;
@@ -66,8 +68,14 @@ pub fn run(args: &SuiteArgs) -> Result<ExitCode> {
         if !opts.json {
             eprintln!("suite: {} ({})", scenario.name, file.display());
         }
-        let summary = opts.run_batch(scenario, file, &opts.out.join(&stem), &cancel)?;
+        let dir = opts.out.join(&stem);
+        let summary = opts.run_batch(scenario, file, &dir, &cancel)?;
         rows.push(BatchRow::from_report(&summary.report, &stem));
+        batches.push(PageBatch {
+            label: summary.report.scenario.clone(),
+            dir,
+            report: summary.report,
+        });
     }
     let mut report = SuiteReport::new(
         &args.dir.display().to_string(),
@@ -80,13 +88,8 @@ pub fn run(args: &SuiteArgs) -> Result<ExitCode> {
         report.passed = false;
     }
     write_json_report(&opts.out, &report)?;
-    let rows = report
-        .scenarios
-        .iter()
-        .map(|r| (r.scenario.clone(), r.clone()))
-        .collect();
     let title = format!("twincell suite {}", report.suite);
-    HtmlPage::for_rows(&title, report.perception, rows, &opts.out)?
+    HtmlPage::for_batches(&title, report.perception, batches)?
         .with_roundness_limits(limits)
         .write(&opts.out)?;
     if opts.json {

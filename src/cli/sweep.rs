@@ -8,7 +8,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use anyhow::Result;
 use clap::Args;
 use twincell::batch::{
-    BatchRow, HtmlPage, RoundnessLimits, SweepPoint, SweepReport, cancel_on_signals,
+    BatchRow, HtmlPage, PageBatch, RoundnessLimits, SweepPoint, SweepReport, cancel_on_signals,
     write_json_report,
 };
 use twincell::scenario::{Scenario, SweepAxis, sweep_grid};
@@ -46,6 +46,7 @@ pub fn run(args: &SweepArgs) -> Result<ExitCode> {
     let cancel = Arc::new(AtomicBool::new(false));
     cancel_on_signals(&cancel)?;
     let mut points = Vec::with_capacity(grid.len());
+    let mut batches = Vec::with_capacity(grid.len());
     for (i, (overrides, scenario)) in grid.iter().zip(scenarios).enumerate() {
         if cancel.load(Ordering::SeqCst) {
             break;
@@ -55,9 +56,21 @@ pub fn run(args: &SweepArgs) -> Result<ExitCode> {
             let label: Vec<String> = overrides.iter().map(ToString::to_string).collect();
             eprintln!("sweep: point {}/{}: {}", i + 1, grid.len(), label.join(" "));
         }
-        let summary = opts.run_batch(scenario, &args.scenario, &opts.out.join(&dir), &cancel)?;
+        let path = opts.out.join(&dir);
+        let summary = opts.run_batch(scenario, &args.scenario, &path, &cancel)?;
         let row = BatchRow::from_report(&summary.report, &dir);
-        points.push(SweepPoint::new(i, overrides, row));
+        let point = SweepPoint::new(i, overrides, row);
+        let label: Vec<String> = point
+            .overrides
+            .iter()
+            .map(|(k, v)| format!("{k}={v}"))
+            .collect();
+        batches.push(PageBatch {
+            label: label.join(" "),
+            dir: path,
+            report: summary.report,
+        });
+        points.push(point);
     }
     let mut report = SweepReport::new(
         &base.name,
@@ -72,23 +85,11 @@ pub fn run(args: &SweepArgs) -> Result<ExitCode> {
         report.passed = false;
     }
     write_json_report(&opts.out, &report)?;
-    let rows = report
-        .points
-        .iter()
-        .map(|p| {
-            let label: Vec<String> = p
-                .overrides
-                .iter()
-                .map(|(k, v)| format!("{k}={v}"))
-                .collect();
-            (label.join(" "), p.row.clone())
-        })
-        .collect();
     let title = format!(
         "twincell sweep of {} (seed {})",
         report.scenario, report.seed
     );
-    HtmlPage::for_rows(&title, report.perception, rows, &opts.out)?
+    HtmlPage::for_batches(&title, report.perception, batches)?
         .with_roundness_limits(limits)
         .write(&opts.out)?;
     if opts.json {

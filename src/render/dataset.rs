@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 
 use super::renderer::Renderer;
 use super::shot::{CameraRig, ObjectTruth, Shot, ShotError};
-use crate::cell::UrdfSource;
+use crate::cell::CellModel;
 use crate::scenario::Scenario;
 
 /// Why a dataset could not be written.
@@ -75,15 +75,15 @@ pub fn yolo_labels(truths: &[ObjectTruth], width_px: u32, height_px: u32) -> Str
     text
 }
 
-/// Writes `count` shots of `scenario` under `out`, rendered at `rig`'s resolution.
+/// Writes `count` shots of `model`'s scenario under `out`, rendered at `rig`'s resolution.
 pub fn export(
-    scenario: &Scenario,
-    urdf: Option<&UrdfSource>,
+    model: &CellModel,
     rig: &CameraRig,
     renderer: &mut Renderer,
     count: u64,
     out: &Path,
 ) -> Result<DatasetSummary, DatasetError> {
+    let scenario = model.scenario();
     let names = class_names(scenario);
     let io = |path: &Path| {
         let path = path.to_path_buf();
@@ -121,8 +121,7 @@ pub fn export(
     };
     for index in 0..count {
         let shot_error = |source: ShotError| DatasetError::Shot { index, source };
-        let shot =
-            Shot::pick_station(scenario, urdf, rig, &scenario.sensor, index).map_err(shot_error)?;
+        let shot = Shot::pick_station(model, rig, &scenario.sensor, index).map_err(shot_error)?;
         let image = shot
             .render(renderer)
             .map_err(|e| shot_error(ShotError::Render(e)))?;

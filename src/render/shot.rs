@@ -3,8 +3,6 @@
 //! realism drawn for the frame (lights, stains and dirt, pose jitter, sensor effects), plus the
 //! ground truth of every labelled object as the rendered camera sees it.
 
-use std::path::Path;
-
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use serde::Serialize;
 
@@ -13,7 +11,7 @@ use super::renderer::{Exposure, GpuScene, Light, MAX_STAIN_BLOBS, Renderer, Stai
 use super::scene::{ObjectKind, Scene, SceneObject};
 use super::sensor::SensorDraw;
 use crate::camera::CameraCalibration;
-use crate::cell::{Cell, CellError, CellModel, UrdfSource};
+use crate::cell::{Cell, CellError, CellModel};
 use crate::rng::SimRng;
 use crate::scenario::{Scenario, SensorSection};
 
@@ -139,41 +137,20 @@ pub struct Shot {
     pub sensor: SensorDraw,
 }
 
-/// Reads the scenario's URDF, if it names one (relative to the scenario file).
-pub fn scenario_urdf(
-    scenario: &Scenario,
-    scenario_path: &Path,
-) -> Result<Option<UrdfSource>, ShotError> {
-    let Some(relative) = &scenario.robot.urdf else {
-        return Ok(None);
-    };
-    let path = scenario_path
-        .parent()
-        .unwrap_or(Path::new("."))
-        .join(relative);
-    let text = std::fs::read_to_string(&path).map_err(|e| {
-        ShotError::Cell(CellError::Sim(crate::sim::SimError::Urdf {
-            reason: e.to_string(),
-            path: path.clone(),
-        }))
-    })?;
-    Ok(Some(UrdfSource { path, text }))
-}
-
 impl Shot {
-    /// Stages shot `index` of `scenario`: the cell built as for a trial (its own seed stream),
+    /// Stages shot `index` of `model`'s scenario: the cell built as for a trial (its own seed
+    /// stream),
     /// the part moved to a random place under the camera with the bottle keeping its drawn
     /// offset from it, and the frame's realism from `sensor`.
     pub fn pick_station(
-        scenario: &Scenario,
-        urdf: Option<&UrdfSource>,
+        model: &CellModel,
         rig: &CameraRig,
         sensor: &SensorSection,
         index: u64,
     ) -> Result<Self, ShotError> {
+        let scenario = model.scenario();
         let mut rng = SimRng::derive(scenario.seed ^ SHOT_SALT, index);
-        let model = CellModel::with_urdf(scenario.clone(), urdf.cloned())?;
-        let cell = Cell::build(&model, &mut rng)?;
+        let cell = Cell::build(model, &mut rng)?;
         let mut scene = Scene::from_cell(&cell, scenario);
         let Some(first) = cell.items.parts().first() else {
             return Err(ShotError::Camera("the cell has no part".into()));

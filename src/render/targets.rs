@@ -11,10 +11,9 @@ use super::pipeline::{COLOUR_FORMAT, DEPTH_FORMAT, ID_FORMAT};
 /// Render-target size classes a renderer keeps before it drops them all and starts again.
 /// Each area of interest has its own size; a target is made at the size's class (each side
 /// rounded up to [`SIZE_CLASS_PX`]) and a smaller image is drawn into its top-left corner, so
-/// the few classes a camera uses stay allocated for the renderer's life. Before, each size had
-/// a target of its own (about 11 MB with 4x MSAA colour and depth on a software adapter): a
-/// dozen per renderer grew a camera batch by 0.8 MB a trial (issue 17), and a cap of four
-/// exact sizes made and dropped targets all batch long, so resident memory swung by 50 MB.
+/// the few classes a camera uses stay allocated for the renderer's life (a target is about
+/// 11 MB with 4x MSAA colour and depth on a software adapter, so one per exact size grows
+/// memory trial by trial).
 pub(super) const MAX_TARGET_SIZES: usize = 8;
 
 /// The step target sides are rounded up to.

@@ -95,6 +95,11 @@ impl Catalogue {
         &self.parts[id.0]
     }
 
+    /// How many part types the catalogue holds.
+    pub fn part_count(&self) -> usize {
+        self.parts.len()
+    }
+
     /// Every part type with its id.
     pub fn parts(&self) -> impl Iterator<Item = (PartTypeId, &PartKind)> {
         self.parts

@@ -102,6 +102,18 @@ impl SimArm {
         path: &Path,
         world_from_base: Isometry3<f64>,
     ) -> Result<Self, SimError> {
+        Self::from_urdf_with(world, text, path, None, world_from_base)
+    }
+
+    /// As [`Self::from_urdf_str`], with the arm `kinematics` already read from the same `text`
+    /// (a cell model reads it once for all its trials); `None` reads it here.
+    pub fn from_urdf_with(
+        world: &mut World,
+        text: &str,
+        path: &Path,
+        kinematics: Option<&UrdfArm>,
+        world_from_base: Isometry3<f64>,
+    ) -> Result<Self, SimError> {
         let urdf_error = |reason: String| SimError::Urdf {
             reason,
             path: path.to_path_buf(),
@@ -121,8 +133,10 @@ impl SimArm {
         if let Some(reason) = tree_error(&description).or_else(|| value_error(&description)) {
             return Err(urdf_error(reason));
         }
-        let kinematics =
-            UrdfArm::from_robot(&description).map_err(|e| urdf_error(e.to_string()))?;
+        let kinematics = match kinematics {
+            Some(arm) => arm.clone(),
+            None => UrdfArm::from_robot(&description).map_err(|e| urdf_error(e.to_string()))?,
+        };
         let WeldedRobot {
             robot,
             collider_sources,

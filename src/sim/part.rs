@@ -3,7 +3,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::rng::SimRng;
-use crate::scenario::{Catalogue, PartTypeId, Scenario};
+use crate::scenario::{Catalogue, PartTypeId};
 
 /// The true shape of a bore's edge: `r(theta)` about the bore's centre.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -88,12 +88,12 @@ pub struct PartInstance {
 }
 
 impl PartInstance {
-    /// Draws a part: uniform type, uniform true roundness in [0, max], a random form.
-    pub fn draw(scenario: &Scenario, rng: &mut SimRng) -> Self {
-        let type_index = rng.below(scenario.part_types.len() as u64) as usize;
-        let catalogue = Catalogue::of(scenario);
+    /// Draws a part of `catalogue`: uniform type, uniform true roundness in
+    /// [0, `max_roundness_mm`], a random form.
+    pub fn draw(catalogue: &Catalogue, max_roundness_mm: f64, rng: &mut SimRng) -> Self {
+        let type_index = rng.below(catalogue.part_count() as u64) as usize;
         let part = catalogue.part(PartTypeId(type_index));
-        let roundness_m = rng.range(0.0, scenario.parts.max_roundness_mm) / 1000.0;
+        let roundness_m = rng.range(0.0, max_roundness_mm) / 1000.0;
         let nominal_radius_m = part.bore_radius_m();
         let bore = match rng.below(3) {
             0 => BoreForm::Ellipse {

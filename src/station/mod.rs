@@ -8,6 +8,7 @@ pub mod bottle_fit;
 pub mod camera_percept;
 mod frame_check;
 mod percept;
+mod sighting_percept;
 
 pub use bottle_fit::{BottleFitter, BottlePose};
 pub use camera_percept::{
@@ -16,3 +17,4 @@ pub use camera_percept::{
 };
 pub use frame_check::{BLANK_LEVEL, black_frame, frame_is_blank};
 pub use percept::{PerceivedObstacle, Percept, bottle_obstacle, part_obstacle};
+pub use sighting_percept::{NEIGHBOURHOOD_M, StationModel};

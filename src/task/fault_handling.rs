@@ -4,7 +4,9 @@
 
 use nalgebra::{Isometry3, Translation3};
 
-use super::trial::Trial;
+use super::cell_data::CellData;
+use super::sorter::Sorter;
+use crate::cell::CellModel;
 use crate::control::{Backoff, BlackoutFrames, FaultPlan, HoldMonitor, PhotoEyeSignal};
 use crate::kinematics::tcp_pose;
 use crate::outcome::{Failure, FailureReason, FaultAction, FaultKind, FaultRecord, Phase, fail};
@@ -106,7 +108,7 @@ impl FaultLog {
     }
 }
 
-impl Trial<'_> {
+impl CellData {
     /// What the photo-eye reports now.
     pub(crate) fn photo_eye_reports(&self) -> bool {
         if self.faults.plan.photo_eye_lies() {
@@ -120,13 +122,13 @@ impl Trial<'_> {
     /// nothing reached the eye.
     pub(crate) fn timed_out_feed(
         &mut self,
+        model: &CellModel,
         failure: Failure,
-        commanded_before_m: f64,
-        encoder_before_m: f64,
+        (commanded_before_m, encoder_before_m): (f64, f64),
     ) -> Failure {
         let commanded_m = self.belt.commanded_travel_m() - commanded_before_m;
         let moved_m = self.belt.encoder_travel_m() - encoder_before_m;
-        let feed_m = self.scenario.conveyor.spawn_upstream_m;
+        let feed_m = model.scenario().conveyor.spawn_upstream_m;
         let now = self.cell.world.time_s();
         let reason = if commanded_m - moved_m > BELT_SHORTFALL_M {
             if !self.faults.belt_noted {
@@ -176,7 +178,7 @@ impl Trial<'_> {
 
     /// Before a look: the camera's frames, waited for with back-off through a blackout. `Err`
     /// when the last retry still gets none (the item is then let through).
-    pub(crate) fn await_frames(&mut self) -> Result<(), Failure> {
+    pub(crate) fn await_frames(&mut self, model: &CellModel) -> Result<(), Failure> {
         let look = self.faults.looks;
         self.faults.looks += 1;
         let now = self.cell.world.time_s();
@@ -196,7 +198,7 @@ impl Trial<'_> {
                 || match frames {
                     BlackoutFrames::None => false,
                     BlackoutFrames::Black => {
-                        let [w, h] = self.scenario.camera.resolution_px;
+                        let [w, h] = model.scenario().camera.resolution_px;
                         !frame_is_blank(&black_frame(w, h))
                     }
                 };
@@ -225,7 +227,7 @@ impl Trial<'_> {
                 );
             };
             actions.push(FaultAction::RetriedCamera);
-            self.settle(wait_s)?;
+            self.settle(model, wait_s)?;
         }
     }
 
@@ -237,10 +239,10 @@ impl Trial<'_> {
         trajectory: &JointTrajectory,
         (at_s, to_s): (f64, f64),
         began_s: f64,
-        held: Option<&HoldMonitor>,
+        holding: bool,
     ) -> Result<(), Failure> {
         let q_now = self.cell.arm.joint_positions(&self.cell.world);
-        let finger_m = if held.is_some() {
+        let finger_m = if holding {
             self.faults.held_radius_m
         } else {
             self.gripper.target_m()
@@ -282,11 +284,12 @@ impl Trial<'_> {
     /// unless an injected fault weakened the grip, when where the part comes to rest decides.
     pub(crate) fn watch_grip(
         &mut self,
+        model: &CellModel,
         phase: Phase,
         hold: &HoldMonitor,
         tcp_from_part: &Isometry3<f64>,
     ) -> Result<(), Failure> {
-        if self.scenario.faults.gripper.is_some() {
+        if model.scenario().faults.gripper.is_some() {
             let gap = self.cell.arm.finger_positions_m(&self.cell.world);
             if gap[0] + gap[1] < 2.0 * self.faults.held_radius_m - JAWS_PAST_PART_M {
                 self.faults.drop_seen = Some((self.cell.world.time_s(), phase));
@@ -302,76 +305,19 @@ impl Trial<'_> {
         hold.check(phase, tcp_from_part)
     }
 
-    /// After a drop the jaws showed: the arm goes home with its jaws open, out of the
-    /// camera's view, and the part is looked for again. `Ok(true)` when it is seen at the
-    /// station (to be picked again).
-    pub(crate) fn look_again_after_drop(&mut self) -> Result<bool, Failure> {
-        let home = self.scenario.robot.home_q_rad;
-        let q_now = self.cell.arm.joint_positions(&self.cell.world);
-        self.gripper.set(self.faults.open_m, 40.0);
-        let speed = self.scenario.robot.speed_fraction;
-        // Straight up first, clear of what stands on the belt, then over home.
-        let model = &self.planner.model;
-        let base_from_tcp = tcp_pose(model, &q_now);
-        let raised = Translation3::new(0.0, 0.0, DROP_RAISE_M) * base_from_tcp;
-        let mut parts = Vec::new();
-        let mut q_raised = q_now;
-        if let Some(up) = straight_line(&self.planner.ik, &base_from_tcp, &raised, &q_now, 0.01) {
-            q_raised = up[up.len() - 1];
-            parts.push(JointTrajectory::along(model, up, speed));
-        }
-        parts.push(JointTrajectory::through(model, &[q_raised, home], speed));
-        let back = JointTrajectory::join(parts, true);
-        if let Some(checker) = &self.faults.checker
-            && let Some(hit) =
-                checker.check_trajectory(&back, self.faults.open_m, None, &[PART_OBSTACLE])
-        {
-            return fail(
-                FailureReason::Collision,
-                format!(
-                    "after the drop the way home would bring {} onto {}",
-                    hit.link, hit.obstacle
-                ),
-            );
-        }
-        let span = (0.0, back.duration_s());
-        self.execute(Phase::Retreat, &back, span, DROP_SETTLE_S, None)?;
-        self.q = home;
-        Ok(self.part_seen_at_station())
-    }
-
-    /// Whether perception shows a part standing at the pick station now: the camera's look,
-    /// or in oracle mode the truth about the handled part.
-    fn part_seen_at_station(&mut self) -> bool {
-        if self.camera.is_some() {
-            return self.perceive(None).is_ok();
-        }
-        let part = &self.cell.items.parts()[self.current];
-        let Some(pose) = self.cell.body_pose(part.body) else {
-            return false;
-        };
-        let belt = &self.scenario.conveyor;
-        let upright = (pose.rotation * nalgebra::Vector3::z()).z > 0.9;
-        let standing_z = self.cell.belt_top_z + part.instance.height_m / 2.0;
-        upright
-            && (pose.translation.z - standing_z).abs() < 0.01
-            && (pose.translation.x - belt.photo_eye_x_m).abs() < 0.3
-            && (pose.translation.y - belt.belt_center_m[1]).abs() < belt.width_m / 2.0
-    }
-
     /// Where the handled part truly rests, in words, for a lost part's record (the judge's
     /// view, never the controller's).
-    pub(crate) fn part_resting_place(&self) -> &'static str {
-        let part = &self.cell.items.parts()[self.current];
+    pub(crate) fn part_resting_place(&self, model: &CellModel, current: usize) -> &'static str {
+        let part = &self.cell.items.parts()[current];
         let Some(pose) = self.cell.body_pose(part.body) else {
             return "gone from the world";
         };
-        let belt = &self.scenario.conveyor;
+        let belt = &model.scenario().conveyor;
         let on_belt = (pose.translation.x - belt.belt_center_m[0]).abs() < belt.length_m / 2.0
             && (pose.translation.y - belt.belt_center_m[1]).abs() < belt.width_m / 2.0
             && (pose.translation.z - self.cell.belt_top_z).abs() < part.instance.height_m;
         let upright = (pose.rotation * nalgebra::Vector3::z()).z > 0.9;
-        match (self.bin_holding_part().is_some(), on_belt, upright) {
+        match (self.bin_holding(current).is_some(), on_belt, upright) {
             (true, _, _) => "in a bin",
             (false, true, true) => "standing on the belt away from the station",
             (false, true, false) => "lying on the belt",
@@ -434,6 +380,70 @@ impl Trial<'_> {
         let mut records = std::mem::take(&mut self.faults.records);
         records.sort_by(|a, b| a.at_s.total_cmp(&b.at_s));
         records
+    }
+}
+
+impl Sorter<'_> {
+    /// After a drop the jaws showed: the arm goes home with its jaws open, out of the
+    /// camera's view, and the part is looked for again. `Ok(true)` when it is seen at the
+    /// station (to be picked again).
+    pub(crate) fn look_again_after_drop(
+        &mut self,
+        model: &CellModel,
+        data: &mut CellData,
+    ) -> Result<bool, Failure> {
+        let scenario = model.scenario();
+        let home = scenario.robot.home_q_rad;
+        let q_now = data.cell.arm.joint_positions(&data.cell.world);
+        data.gripper.set(data.faults.open_m, 40.0);
+        let speed = scenario.robot.speed_fraction;
+        // Straight up first, clear of what stands on the belt, then over home.
+        let arm = &self.planner.model;
+        let base_from_tcp = tcp_pose(arm, &q_now);
+        let raised = Translation3::new(0.0, 0.0, DROP_RAISE_M) * base_from_tcp;
+        let mut parts = Vec::new();
+        let mut q_raised = q_now;
+        if let Some(up) = straight_line(&self.planner.ik, &base_from_tcp, &raised, &q_now, 0.01) {
+            q_raised = up[up.len() - 1];
+            parts.push(JointTrajectory::along(arm, up, speed));
+        }
+        parts.push(JointTrajectory::through(arm, &[q_raised, home], speed));
+        let back = JointTrajectory::join(parts, true);
+        if let Some(checker) = &data.faults.checker
+            && let Some(hit) =
+                checker.check_trajectory(&back, data.faults.open_m, None, &[PART_OBSTACLE])
+        {
+            return fail(
+                FailureReason::Collision,
+                format!(
+                    "after the drop the way home would bring {} onto {}",
+                    hit.link, hit.obstacle
+                ),
+            );
+        }
+        let span = (0.0, back.duration_s());
+        data.execute(model, Phase::Retreat, &back, span, DROP_SETTLE_S, None)?;
+        data.q = home;
+        Ok(self.part_seen_at_station(model, data))
+    }
+
+    /// Whether perception shows a part standing at the pick station now: the camera's look,
+    /// or in oracle mode the truth about the handled part.
+    fn part_seen_at_station(&mut self, model: &CellModel, data: &mut CellData) -> bool {
+        if self.camera.is_some() {
+            return self.perceive(model, data, None).is_ok();
+        }
+        let part = &data.cell.items.parts()[self.current];
+        let Some(pose) = data.cell.body_pose(part.body) else {
+            return false;
+        };
+        let belt = &model.scenario().conveyor;
+        let upright = (pose.rotation * nalgebra::Vector3::z()).z > 0.9;
+        let standing_z = data.cell.belt_top_z + part.instance.height_m / 2.0;
+        upright
+            && (pose.translation.z - standing_z).abs() < 0.01
+            && (pose.translation.x - belt.photo_eye_x_m).abs() < 0.3
+            && (pose.translation.y - belt.belt_center_m[1]).abs() < belt.width_m / 2.0
     }
 }
 

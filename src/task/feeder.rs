@@ -3,7 +3,7 @@
 
 use nalgebra::Isometry3;
 
-use crate::cell::Cell;
+use crate::cell::{Cell, CellModel};
 use crate::rng::SimRng;
 use crate::scenario::Scenario;
 
@@ -63,13 +63,14 @@ impl Feeder {
     pub fn advance(
         &mut self,
         belt_travel_m: f64,
-        scenario: &Scenario,
+        model: &CellModel,
         cell: &mut Cell,
         bottle_rest: &mut Vec<Option<Isometry3<f64>>>,
     ) {
         if self.queue.is_empty() {
             return;
         }
+        let scenario = model.scenario();
         self.travel_since_feed_m += belt_travel_m;
         if self.travel_since_feed_m < scenario.stream.spacing_m {
             return;
@@ -77,7 +78,7 @@ impl Feeder {
         self.travel_since_feed_m -= scenario.stream.spacing_m;
         match self.queue.pop() {
             Some(FeedItem::Part) => {
-                cell.spawn_part(scenario, &mut self.rng);
+                cell.spawn_part(model, &mut self.rng);
             }
             Some(FeedItem::Bottle) => {
                 cell.spawn_bottle(scenario, &mut self.rng);

@@ -2,19 +2,22 @@
 //! sequencing perception, planning and control each tick; the stream feeder; the oracle and
 //! camera percept adapters; and the judging of outcomes against the truth.
 
+mod cell_data;
 mod fault_handling;
 mod feeder;
 pub mod judge;
+mod motion_stages;
 mod observer;
 mod perceive;
 mod phase;
 mod pick_cycle;
 mod runner;
+mod sorter;
 mod stream;
-mod trial;
 
 pub use crate::outcome::Phase;
 pub use crate::station::{CameraPerception, StationItem, TargetRule};
+pub use cell_data::CellData;
 pub use feeder::{FeedItem, Feeder};
 pub use observer::{
     BoreView, CellView, DetectionView, PerceptionFrame, SAMPLE_RATE_HZ, TrialObserver,

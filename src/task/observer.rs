@@ -154,15 +154,15 @@ pub struct BoreView {
 
 /// The observer attached to a running trial, and when it is next due for a sample.
 #[derive(Default)]
-pub(crate) struct ObserverSlot<'a> {
-    observer: Option<&'a mut (dyn TrialObserver + 'static)>,
+pub(crate) struct ObserverSlot {
+    observer: Option<Box<dyn TrialObserver>>,
     next_sample_s: f64,
     now_s: f64,
 }
 
-impl<'a> ObserverSlot<'a> {
+impl ObserverSlot {
     /// A slot holding `observer`; empty slots cost one branch a step.
-    pub(crate) fn new(observer: Option<&'a mut (dyn TrialObserver + 'static)>) -> Self {
+    pub(crate) fn new(observer: Option<Box<dyn TrialObserver>>) -> Self {
         Self {
             observer,
             next_sample_s: 0.0,
@@ -194,6 +194,11 @@ impl<'a> ObserverSlot<'a> {
                 self.next_sample_s += 1.0 / SAMPLE_RATE_HZ;
             }
         }
+    }
+
+    /// Empties the slot, handing back its observer.
+    pub(crate) fn take(&mut self) -> Option<Box<dyn TrialObserver>> {
+        self.observer.take()
     }
 
     /// Hands perception's result to the observer; `frame` is built only when one is attached.

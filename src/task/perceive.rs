@@ -3,38 +3,41 @@
 
 use nalgebra::{Isometry3, Point3, Vector3};
 
+use super::cell_data::CellData;
 use super::observer::{BoreView, DetectionView, PerceptionFrame};
-use super::trial::Trial;
+use super::sorter::Sorter;
+use crate::cell::CellModel;
 use crate::outcome::{Failure, FailureReason, PartRecord, fail};
 use crate::render::Scene;
 use crate::rng::SimRng;
 use crate::scenario::{Catalogue, PartTypeId};
 use crate::station::{
-    CameraPerception, Percept, Sighting, StationItem, TargetRule, bottle_obstacle, part_obstacle,
+    CameraPerception, NEIGHBOURHOOD_M, Percept, Sighting, StationItem, StationModel, TargetRule,
+    bottle_obstacle, part_obstacle,
 };
 
-/// Things on the belt within this distance of the part are obstacles to its pick, m.
-const NEIGHBOURHOOD_M: f64 = 0.45;
-/// How much a bottle seen by the camera is grown as an obstacle, for the uncertainty of a pose
-/// fitted to its box, m.
-const SEEN_BOTTLE_GROWTH_M: f64 = 0.004;
 /// Salt that keeps the camera's realism stream apart from the trial's physics stream.
 const CAMERA_SALT: u64 = 0x4C4F_4F4B;
 
-impl Trial<'_> {
+impl Sorter<'_> {
     /// What perception says about the part at the station: from `seen` when the camera has
     /// already looked, else from a new look (or the oracle).
-    pub(crate) fn perceive(&mut self, seen: Option<Sighting>) -> Result<Percept, Failure> {
+    pub(crate) fn perceive(
+        &mut self,
+        model: &CellModel,
+        data: &mut CellData,
+        seen: Option<Sighting>,
+    ) -> Result<Percept, Failure> {
         match (self.camera, seen) {
-            (_, Some(sighting)) => self.percept_from(&sighting),
+            (_, Some(sighting)) => percept_from(model, data, &sighting),
             (Some(camera), None) => {
-                let sighting = self.look(camera, TargetRule::NearestStation)?;
-                self.percept_from(&sighting)
+                let sighting = self.look(model, data, camera, TargetRule::NearestStation)?;
+                percept_from(model, data, &sighting)
             }
             (None, None) => {
                 // The oracle stands in for the camera's frames, and waits out a blackout too.
-                self.await_frames()?;
-                self.perceive_oracle()
+                data.await_frames(model)?;
+                perceive_oracle(model, data, self.current)
             }
         }
     }
@@ -42,144 +45,100 @@ impl Trial<'_> {
     /// The product: render the pick station as the camera sees it (every part and bottle on the
     /// belt), detect, and measure the target part chosen by `rule`.
     pub(crate) fn look(
-        &mut self,
+        &self,
+        model: &CellModel,
+        data: &mut CellData,
         camera: &CameraPerception,
         rule: TargetRule,
     ) -> Result<Sighting, Failure> {
-        self.await_frames()?;
-        let scene = Scene::from_cell(&self.cell, self.scenario);
-        let mut rng = SimRng::derive(self.seed ^ CAMERA_SALT, self.shots);
-        self.shots += 1;
-        let belt = &self.scenario.conveyor;
-        let station = Point3::new(
-            belt.photo_eye_x_m,
-            belt.belt_center_m[1],
-            self.cell.belt_top_z,
-        );
+        data.await_frames(model)?;
+        let scenario = model.scenario();
+        let scene = Scene::from_cell(&data.cell, scenario);
+        let mut rng = SimRng::derive(data.seed ^ CAMERA_SALT, data.shots);
+        data.shots += 1;
+        let belt = &scenario.conveyor;
+        let belt_top_z = data.cell.belt_top_z;
+        let station = Point3::new(belt.photo_eye_x_m, belt.belt_center_m[1], belt_top_z);
         let sighting = camera
-            .look(
-                self.scenario,
-                scene,
-                &mut rng,
-                &station,
-                self.cell.belt_top_z,
-                rule,
-            )
+            .look(scenario, scene, &mut rng, &station, belt_top_z, rule)
             .map_err(|e| Failure::new(FailureReason::PerceptionError, e.to_string()))?;
-        self.timing.render_ms += sighting.render_ms;
-        self.timing.detect_ms += sighting.detect_ms;
-        self.timing.metrology_ms += sighting.metrology_ms;
-        let truth = self.part_record();
-        let catalogue = self.catalogue;
-        self.observer()
-            .perception(|| perception_frame(&sighting, &truth, catalogue));
+        data.timing.render_ms += sighting.render_ms;
+        data.timing.detect_ms += sighting.detect_ms;
+        data.timing.metrology_ms += sighting.metrology_ms;
+        let truth = self.part_record(model, data);
+        let catalogue = model.catalogue();
+        data.observe_perception(|| perception_frame(&sighting, &truth, catalogue));
         Ok(sighting)
     }
+}
 
-    /// What a camera sighting means for the pick: the target part's type, place and bore, and the
-    /// bottles and other parts near it as obstacles.
-    fn percept_from(&self, sighting: &Sighting) -> Result<Percept, Failure> {
-        let Some(target) = &sighting.target else {
-            return fail(
-                FailureReason::NotDetected,
-                format!(
-                    "no part detected at the pick station ({} detections)",
-                    sighting.detections.len()
-                ),
-            );
-        };
-        let part_type = PartTypeId(target.type_index);
-        let kind = self.catalogue.part(part_type);
-        let part_height_m = kind.height_m;
-        let centre = target.centre_in_world;
-        let near = |x: f64, y: f64| (x - centre.x).hypot(y - centre.y) < NEIGHBOURHOOD_M;
-        let mut obstacles = Vec::new();
-        for bottle in &sighting.bottles {
-            for pose in &bottle.poses {
-                let t = pose.world_from_bottle.translation.vector;
-                if near(t.x, t.y) {
-                    obstacles.push(bottle_obstacle(
-                        &self.scenario.bottle,
-                        &pose.world_from_bottle,
-                        pose.lying,
-                        SEEN_BOTTLE_GROWTH_M,
-                    ));
-                }
-            }
-        }
-        for other in &sighting.other_parts {
-            let p = other.centre_in_world;
-            if near(p.x, p.y) {
-                let other_type = self.catalogue.part(PartTypeId(other.type_index));
-                let height_m = other_type.height_m;
-                obstacles.push(part_obstacle(
-                    &Point3::new(p.x, p.y, self.cell.belt_top_z + height_m / 2.0),
-                    other_type.outer_radius_m(),
-                    height_m,
-                ));
-            }
-        }
-        let (roundness_mm, bore_diameter_mm) = match &target.bore {
-            Some((_, plane)) => (Some(plane.roundness_m * 1e3), Some(plane.diameter_m * 1e3)),
-            None => (None, None),
-        };
-        Ok(Percept {
-            part_type,
-            part_xy: [centre.x, centre.y],
-            part_outer_radius_m: kind.outer_radius_m(),
-            part_height_m,
-            roundness_mm,
-            bore_diameter_mm,
-            inconsistency: target.inconsistency.clone(),
-            obstacles,
-        })
-    }
+/// What a camera sighting means for the pick; a sighting without a target part fails.
+fn percept_from(
+    model: &CellModel,
+    data: &CellData,
+    sighting: &Sighting,
+) -> Result<Percept, Failure> {
+    let station = StationModel {
+        catalogue: model.catalogue(),
+        bottle: &model.scenario().bottle,
+        belt_top_z: data.cell.belt_top_z,
+    };
+    sighting.percept(&station).ok_or_else(|| {
+        Failure::new(
+            FailureReason::NotDetected,
+            format!(
+                "no part detected at the pick station ({} detections)",
+                sighting.detections.len()
+            ),
+        )
+    })
+}
 
-    /// Ground truth read from the world (diagnosis mode): the part at the pick station, and
-    /// the bottles and other parts near it as obstacles.
-    fn perceive_oracle(&self) -> Result<Percept, Failure> {
-        let items = &self.cell.items;
-        let handled = &items.parts()[self.current];
-        let Some(part_pose) = self.cell.body_pose(handled.body) else {
-            return fail(FailureReason::NotDetected, "part body missing");
+/// Ground truth read from the world (diagnosis mode): the part at the pick station, and
+/// the bottles and other parts near it as obstacles.
+fn perceive_oracle(model: &CellModel, data: &CellData, current: usize) -> Result<Percept, Failure> {
+    let scenario = model.scenario();
+    let items = &data.cell.items;
+    let handled = &items.parts()[current];
+    let Some(part_pose) = data.cell.body_pose(handled.body) else {
+        return fail(FailureReason::NotDetected, "part body missing");
+    };
+    let near = |pose: &Isometry3<f64>| {
+        let d = pose.translation.vector - part_pose.translation.vector;
+        d.x.hypot(d.y) < NEIGHBOURHOOD_M && (d.z).abs() < 0.1
+    };
+    let mut obstacles = Vec::new();
+    for bottle in items.bottles() {
+        let Some(pose) = data.cell.body_pose(bottle.body).filter(near) else {
+            continue;
         };
-        let near = |pose: &Isometry3<f64>| {
-            let d = pose.translation.vector - part_pose.translation.vector;
-            d.x.hypot(d.y) < NEIGHBOURHOOD_M && (d.z).abs() < 0.1
-        };
-        let mut obstacles = Vec::new();
-        for bottle in items.bottles() {
-            let Some(pose) = self.cell.body_pose(bottle.body).filter(near) else {
-                continue;
-            };
-            let lying = bottle.lying || (pose.rotation * Vector3::z()).z.abs() < 0.7;
-            obstacles.push(bottle_obstacle(&self.scenario.bottle, &pose, lying, 0.0));
-        }
-        for (i, other) in items.parts().iter().enumerate() {
-            if i == self.current {
-                continue;
-            }
-            let Some(pose) = self.cell.body_pose(other.body).filter(near) else {
-                continue;
-            };
-            obstacles.push(part_obstacle(
-                &Point3::from(pose.translation.vector),
-                other.instance.outer_radius_m,
-                other.instance.height_m,
-            ));
-        }
-        let part = &handled.instance;
-        Ok(Percept {
-            part_type: PartTypeId(part.type_index),
-            part_xy: [part_pose.translation.x, part_pose.translation.y],
-            part_outer_radius_m: part.outer_radius_m,
-            part_height_m: part.height_m,
-            roundness_mm: Some(part.bore.roundness_m() * 1000.0),
-            bore_diameter_mm: Some(part.bore.mean_diameter_m() * 1000.0),
-            inconsistency: None,
-            obstacles,
-        })
+        let lying = bottle.lying || (pose.rotation * Vector3::z()).z.abs() < 0.7;
+        obstacles.push(bottle_obstacle(&scenario.bottle, &pose, lying, 0.0));
     }
+    for (i, other) in items.parts().iter().enumerate() {
+        if i == current {
+            continue;
+        }
+        let Some(pose) = data.cell.body_pose(other.body).filter(near) else {
+            continue;
+        };
+        obstacles.push(part_obstacle(
+            &Point3::from(pose.translation.vector),
+            other.instance.outer_radius_m,
+            other.instance.height_m,
+        ));
+    }
+    let part = &handled.instance;
+    Ok(Percept {
+        part_type: PartTypeId(part.type_index),
+        part_xy: [part_pose.translation.x, part_pose.translation.y],
+        part_outer_radius_m: part.outer_radius_m,
+        part_height_m: part.height_m,
+        roundness_mm: Some(part.bore.roundness_m() * 1000.0),
+        bore_diameter_mm: Some(part.bore.mean_diameter_m() * 1000.0),
+        inconsistency: None,
+        obstacles,
+    })
 }
 
 /// What the camera saw, as an observer is shown it: the image, the detector's boxes, and the

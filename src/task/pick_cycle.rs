@@ -3,8 +3,11 @@
 
 use std::time::Instant;
 
+use super::cell_data::CellData;
 use super::judge::{self, CycleEvidence};
-use super::trial::Trial;
+use super::motion_stages::Held;
+use super::sorter::Sorter;
+use crate::cell::CellModel;
 use crate::control::HoldMonitor;
 use crate::outcome::{DecisionRecord, Failure, FailureReason, PartRecord, Phase, fail};
 use crate::planning::{JointTrajectory, Payload, PickPlan, PlacePlan};
@@ -45,17 +48,17 @@ struct CycleState {
     hold: Option<HoldMonitor>,
 }
 
-impl Trial<'_> {
+impl Sorter<'_> {
     /// The truth about the part being handled.
-    pub(crate) fn part_record(&self) -> PartRecord {
-        let part = &self.cell.items.parts()[self.current].instance;
-        judge::part_record(self.scenario, self.catalogue, part)
+    pub(crate) fn part_record(&self, model: &CellModel, data: &CellData) -> PartRecord {
+        let part = &data.cell.items.parts()[self.current].instance;
+        judge::part_record(model.scenario(), model.catalogue(), part)
     }
 
     /// A part that never reached the pick station.
-    pub(crate) fn unreached(&self, failure: Failure) -> Cycle {
+    pub(crate) fn unreached(&self, model: &CellModel, data: &CellData, failure: Failure) -> Cycle {
         Cycle {
-            part: self.part_record(),
+            part: self.part_record(model, data),
             decision: None,
             placed_bin: None,
             placed_bin_id: None,
@@ -69,27 +72,33 @@ impl Trial<'_> {
 
     /// One pick cycle on the part at the photo-eye (the belt stopped), then judged against the
     /// truth. `seen` is the camera's look at the station when one was already taken.
-    pub(crate) fn pick_cycle(&mut self, seen: Option<Sighting>) -> Cycle {
-        self.touch_phase = None;
-        self.faults.cycles += 1;
-        let part = self.part_record();
+    pub(crate) fn pick_cycle(
+        &mut self,
+        model: &CellModel,
+        data: &mut CellData,
+        seen: Option<Sighting>,
+    ) -> Cycle {
+        let (scenario, catalogue) = (model.scenario(), model.catalogue());
+        data.touch_phase = None;
+        data.faults.cycles += 1;
+        let part = self.part_record(model, data);
         let mut decision = None;
-        let result = self.run_cycle(seen, &mut decision);
-        let placed_bin_id = self.bin_holding_part();
+        let result = self.run_cycle(model, data, seen, &mut decision);
+        let placed_bin_id = data.bin_holding(self.current);
         let evidence = CycleEvidence {
-            part_type: PartTypeId(self.cell.items.parts()[self.current].instance.type_index),
+            part_type: PartTypeId(data.cell.items.parts()[self.current].instance.type_index),
             placed_bin: placed_bin_id,
-            bottle_lifted: self.bottle_lifted(),
-            touch_phase: self.touch_phase,
-            bottle_displacement_m: self.bottle_displacement_m(),
+            bottle_lifted: data.bottle_lifted(),
+            touch_phase: data.touch_phase,
+            bottle_displacement_m: data.bottle_displacement_m(),
         };
-        let failure = judge::judge_cycle(self.scenario, self.catalogue, &part, result, &evidence);
-        let touched = evidence.bottle_disturbed(self.scenario);
+        let failure = judge::judge_cycle(scenario, catalogue, &part, result, &evidence);
+        let touched = evidence.bottle_disturbed(scenario);
         let (picked, displacement_m) = (evidence.bottle_lifted, evidence.bottle_displacement_m);
         Cycle {
             part,
             decision,
-            placed_bin: placed_bin_id.map(|b| self.catalogue.bin_name(b).to_owned()),
+            placed_bin: placed_bin_id.map(|b| catalogue.bin_name(b).to_owned()),
             placed_bin_id,
             failure,
             touched,
@@ -97,7 +106,7 @@ impl Trial<'_> {
             displacement_m,
             cycle_time_s: self
                 .pick_time_s
-                .map_or(0.0, |t| self.cell.world.time_s() - t),
+                .map_or(0.0, |t| data.cell.world.time_s() - t),
         }
     }
 
@@ -105,33 +114,36 @@ impl Trial<'_> {
     /// once perception has decided.
     fn run_cycle(
         &mut self,
+        model: &CellModel,
+        data: &mut CellData,
         seen: Option<Sighting>,
         decision: &mut Option<DecisionRecord>,
     ) -> Result<(), Failure> {
+        let catalogue = model.catalogue();
         let mut state = CycleState::default();
         let mut seen = seen;
         let mut phase = Phase::Perceive;
         loop {
-            self.phase = phase;
+            data.phase = phase;
             match phase {
                 Phase::Perceive => {
-                    let percept = self.perceive(seen.take())?;
-                    let (recorded, bin) = self.decide(&percept);
+                    let percept = self.perceive(model, data, seen.take())?;
+                    let (recorded, bin) = decide(model, &percept);
                     *decision = Some(recorded);
-                    self.grip_recipe_n = self.catalogue.part(percept.part_type).grip_force_n;
+                    self.grip_recipe_n = catalogue.part(percept.part_type).grip_force_n;
                     state.bin = bin;
                     state.percept = Some(percept);
                 }
                 Phase::Plan => {
                     let started = Instant::now();
-                    let planned = self.plan(&state);
-                    self.timing.planning_ms += started.elapsed().as_secs_f64() * 1e3;
+                    let planned = self.plan(model, data, &state);
+                    data.timing.planning_ms += started.elapsed().as_secs_f64() * 1e3;
                     let (pick, place) = planned?;
-                    if !self.scenario.faults.is_empty()
+                    if !model.scenario().faults.is_empty()
                         && let Some(percept) = &state.percept
                     {
                         // Kept for checking the motions again after a fault.
-                        self.faults.checker = Some(self.planner.checker_for(percept));
+                        data.faults.checker = Some(self.planner.checker_for(percept));
                     }
                     state.pick = Some(pick);
                     state.place = Some(place);
@@ -141,33 +153,35 @@ impl Trial<'_> {
                         return fail(FailureReason::Panic, "approach without a plan");
                     };
                     let open = self.planner.open_offset_m(percept);
-                    self.gripper.set(open, OPEN_FORCE_N);
-                    self.faults.open_m = open;
-                    let trajectory = pick.approach.clone();
-                    self.play_part(phase, &trajectory, Phase::Approach, None)?;
+                    data.gripper.set(open, OPEN_FORCE_N);
+                    data.faults.open_m = open;
+                    play_part(model, data, phase, &pick.approach, Phase::Approach, None)?;
                 }
                 Phase::Grasp => {
                     let Some(percept) = &state.percept else {
                         return fail(FailureReason::Panic, "grasp without a percept");
                     };
-                    self.grasp(percept.part_outer_radius_m)?;
+                    let radius_m = percept.part_outer_radius_m;
+                    grasp(model, data, self.grip_recipe_n, radius_m)?;
                     state.hold = Some(HoldMonitor {
-                        tcp_from_part: self.tcp_from_part()?,
-                        slip_tolerance_m: self.scenario.task.slip_tolerance_m,
+                        tcp_from_part: data.tcp_from_part(model.arm_model(), self.current)?,
+                        slip_tolerance_m: model.scenario().task.slip_tolerance_m,
                     });
                 }
                 Phase::Lift | Phase::Transport | Phase::Place => {
                     let (Some(place), Some(hold)) = (&state.place, &state.hold) else {
                         return fail(FailureReason::Panic, "carrying without a plan or a grip");
                     };
-                    let hold = *hold;
+                    let held = Some(Held {
+                        part: self.current,
+                        monitor: hold,
+                    });
                     if phase == Phase::Place {
-                        let trajectory = place.lower.clone();
+                        let trajectory = &place.lower;
                         let span = (0.0, trajectory.duration_s());
-                        self.execute(phase, &trajectory, span, STOP_SETTLE_S, Some(&hold))?;
+                        data.execute(model, phase, trajectory, span, STOP_SETTLE_S, held)?;
                     } else {
-                        let trajectory = place.carry.clone();
-                        self.play_part(phase, &trajectory, Phase::Lift, Some(&hold))?;
+                        play_part(model, data, phase, &place.carry, Phase::Lift, held)?;
                     }
                 }
                 Phase::Release => {
@@ -175,20 +189,20 @@ impl Trial<'_> {
                         return fail(FailureReason::Panic, "release without a percept");
                     };
                     let open = self.planner.open_offset_m(percept);
-                    let pads = self.cell.arm.finger_positions_m(&self.cell.world);
+                    let pads = data.cell.arm.finger_positions_m(&data.cell.world);
                     let pads_m = pads[0].min(pads[1]);
-                    self.gripper.open_from(pads_m, open, OPEN_FORCE_N);
+                    data.gripper.open_from(pads_m, open, OPEN_FORCE_N);
                     // Until the drive has brought both pads clear of the part's wall.
-                    let travel_m = (open - self.gripper.target_m()).max(0.0);
-                    self.settle(travel_m / JAW_SPEED_M_S + RELEASE_MARGIN_S)?;
+                    let travel_m = (open - data.gripper.target_m()).max(0.0);
+                    data.settle(model, travel_m / JAW_SPEED_M_S + RELEASE_MARGIN_S)?;
                 }
                 Phase::Retreat => {
                     let Some(place) = &state.place else {
                         return fail(FailureReason::Panic, "retreat without a plan");
                     };
-                    let trajectory = place.retreat.clone();
+                    let trajectory = &place.retreat;
                     let span = (0.0, trajectory.duration_s());
-                    self.execute(Phase::Retreat, &trajectory, span, 0.0, None)?;
+                    data.execute(model, Phase::Retreat, trajectory, span, 0.0, None)?;
                     return Ok(());
                 }
                 Phase::Wait | Phase::Pass => {
@@ -199,95 +213,106 @@ impl Trial<'_> {
         }
     }
 
-    /// Plays `phase`'s part of a trajectory of two blended parts, the first played as `first`:
-    /// the first part up to where the second starts, then the second to the end and a short
-    /// rest.
-    fn play_part(
-        &mut self,
-        phase: Phase,
-        trajectory: &JointTrajectory,
-        first: Phase,
-        hold: Option<&HoldMonitor>,
-    ) -> Result<(), Failure> {
-        let split_s = trajectory.part_starts_s().get(1).copied().unwrap_or(0.0);
-        if phase == first {
-            self.execute(phase, trajectory, (0.0, split_s), 0.0, hold)
-        } else {
-            let span = (split_s, trajectory.duration_s());
-            self.execute(phase, trajectory, span, STOP_SETTLE_S, hold)
-        }
-    }
-
-    /// What the jaws will hold: the detected type's tube, the grip force chosen for it and the
-    /// pads' friction.
-    fn payload(&self, percept: &Percept) -> Payload {
-        Payload {
-            mass_kg: self.catalogue.part(percept.part_type).mass_kg(),
-            grip_force_n: self.grip_recipe_n,
-            pad_friction: self.scenario.gripper.pad_friction,
-        }
-    }
-
-    /// The sorting rule: accept only a part whose bore was measured within tolerance and whose
-    /// measurement agrees with the detected type. Returns the decision and its bin.
-    fn decide(&self, percept: &Percept) -> (DecisionRecord, Option<BinId>) {
-        let accept = percept.inconsistency.is_none()
-            && percept
-                .roundness_mm
-                .is_some_and(|r| r <= self.scenario.roundness_tolerance_mm);
-        let bin = self.catalogue.bin_for(percept.part_type, accept);
-        let decision = DecisionRecord {
-            detected_type: self.catalogue.part(percept.part_type).name.clone(),
-            measured_roundness_mm: percept.roundness_mm,
-            measured_bore_diameter_mm: percept.bore_diameter_mm,
-            accept,
-            bin: judge::bin_name(self.catalogue, bin),
-            note: percept.inconsistency.clone(),
-        };
-        (decision, bin)
-    }
-
     /// The pick and the place, both planned before the arm moves.
-    fn plan(&self, state: &CycleState) -> Result<(PickPlan, PlacePlan), Failure> {
+    fn plan(
+        &self,
+        model: &CellModel,
+        data: &CellData,
+        state: &CycleState,
+    ) -> Result<(PickPlan, PlacePlan), Failure> {
         let Some(percept) = &state.percept else {
             return fail(FailureReason::Panic, "planning without a percept");
         };
         let checker = self.planner.checker_for(percept);
-        let pick = self.planner.plan_pick(percept, &checker, &self.q)?;
+        let pick = self.planner.plan_pick(percept, &checker, &data.q)?;
         let Some(bin_id) = state.bin else {
             return fail(FailureReason::WrongBin, "no bin named ");
         };
-        let bin = &self.cell.bins[bin_id.0];
-        let placed_before = self.bin_fill[bin_id.0];
-        let payload = self.payload(percept);
+        let bin = &data.cell.bins[bin_id.0];
+        let placed_before = data.bin_fill[bin_id.0];
+        let payload = payload(model, percept, self.grip_recipe_n);
         let place =
             self.planner
                 .plan_place(percept, bin, placed_before, &pick, &payload, &checker)?;
         Ok((pick, place))
     }
+}
 
-    /// Closes the jaws with the part type's force: the drive runs its stroke to fully closed,
-    /// then holds; a part between the jaws stops them short, which is how the grasp is detected.
-    fn grasp(&mut self, part_radius_m: f64) -> Result<(), Failure> {
-        if let Some(fault) = self.faults.plan.grip_fault_at(self.faults.grasps) {
-            self.gripper.inject(&fault);
-        }
-        self.faults.grasps += 1;
-        self.faults.held_radius_m = part_radius_m;
-        self.gripper.set(0.0, self.grip_recipe_n);
-        let stroke_s = self.gripper.target_m() / JAW_SPEED_M_S;
-        self.settle(stroke_s + GRIP_BUILD_S)?;
-        let gap = self.cell.arm.finger_positions_m(&self.cell.world);
-        let closed_on_part = gap[0] + gap[1] > 2.0 * part_radius_m - 0.006;
-        if !closed_on_part {
-            return fail(
-                FailureReason::Slipped,
-                format!(
-                    "jaws closed to {:.1} mm: nothing between them",
-                    (gap[0] + gap[1]) * 1e3
-                ),
-            );
-        }
-        Ok(())
+/// Plays `phase`'s part of a trajectory of two blended parts, the first played as `first`: the
+/// first part up to where the second starts, then the second to the end and a short rest.
+fn play_part(
+    model: &CellModel,
+    data: &mut CellData,
+    phase: Phase,
+    trajectory: &JointTrajectory,
+    first: Phase,
+    held: Option<Held<'_>>,
+) -> Result<(), Failure> {
+    let split_s = trajectory.part_starts_s().get(1).copied().unwrap_or(0.0);
+    if phase == first {
+        data.execute(model, phase, trajectory, (0.0, split_s), 0.0, held)
+    } else {
+        let span = (split_s, trajectory.duration_s());
+        data.execute(model, phase, trajectory, span, STOP_SETTLE_S, held)
     }
+}
+
+/// What the jaws will hold: the detected type's tube, the grip force chosen for it and the pads'
+/// friction.
+fn payload(model: &CellModel, percept: &Percept, grip_force_n: f64) -> Payload {
+    Payload {
+        mass_kg: model.catalogue().part(percept.part_type).mass_kg(),
+        grip_force_n,
+        pad_friction: model.scenario().gripper.pad_friction,
+    }
+}
+
+/// The sorting rule: accept only a part whose bore was measured within tolerance and whose
+/// measurement agrees with the detected type. Returns the decision and its bin.
+fn decide(model: &CellModel, percept: &Percept) -> (DecisionRecord, Option<BinId>) {
+    let catalogue = model.catalogue();
+    let accept = percept.inconsistency.is_none()
+        && percept
+            .roundness_mm
+            .is_some_and(|r| r <= model.scenario().roundness_tolerance_mm);
+    let bin = catalogue.bin_for(percept.part_type, accept);
+    let decision = DecisionRecord {
+        detected_type: catalogue.part(percept.part_type).name.clone(),
+        measured_roundness_mm: percept.roundness_mm,
+        measured_bore_diameter_mm: percept.bore_diameter_mm,
+        accept,
+        bin: judge::bin_name(catalogue, bin),
+        note: percept.inconsistency.clone(),
+    };
+    (decision, bin)
+}
+
+/// Closes the jaws with `grip_force_n`: the drive runs its stroke to fully closed, then holds; a
+/// part between the jaws stops them short, which is how the grasp is detected.
+fn grasp(
+    model: &CellModel,
+    data: &mut CellData,
+    grip_force_n: f64,
+    part_radius_m: f64,
+) -> Result<(), Failure> {
+    if let Some(fault) = data.faults.plan.grip_fault_at(data.faults.grasps) {
+        data.gripper.inject(&fault);
+    }
+    data.faults.grasps += 1;
+    data.faults.held_radius_m = part_radius_m;
+    data.gripper.set(0.0, grip_force_n);
+    let stroke_s = data.gripper.target_m() / JAW_SPEED_M_S;
+    data.settle(model, stroke_s + GRIP_BUILD_S)?;
+    let gap = data.cell.arm.finger_positions_m(&data.cell.world);
+    let closed_on_part = gap[0] + gap[1] > 2.0 * part_radius_m - 0.006;
+    if !closed_on_part {
+        return fail(
+            FailureReason::Slipped,
+            format!(
+                "jaws closed to {:.1} mm: nothing between them",
+                (gap[0] + gap[1]) * 1e3
+            ),
+        );
+    }
+    Ok(())
 }

@@ -4,12 +4,12 @@ use std::path::Path;
 use std::sync::Arc;
 use std::time::Instant;
 
+use super::cell_data::CellData;
 use super::observer::{CellView, PerceptionFrame, TrialObserver, TrialObserverFactory};
-use super::trial::Trial;
-use crate::cell::{Cell, CellError, CellModel};
+use super::sorter::Sorter;
+use crate::cell::{CellError, CellModel};
 use crate::detect::DetectorModel;
 use crate::outcome::{FailureReason, Perception, TrialRecord, TrialRunner};
-use crate::rng::SimRng;
 use crate::scenario::Scenario;
 use crate::station::{CameraPerception, CameraPerceptionError};
 
@@ -103,7 +103,7 @@ impl CellTrialRunner {
 impl TrialRunner for CellTrialRunner {
     fn run_trial(&self, index: u32, seed: u64) -> TrialRecord {
         let started = Instant::now();
-        let mut rng = SimRng::new(seed);
+        let model = &self.model;
         let mut observer: Option<Box<dyn TrialObserver>> = match self.observers.as_slice() {
             [] => None,
             [one] => Some(one.observer(index)),
@@ -111,15 +111,17 @@ impl TrialRunner for CellTrialRunner {
                 many.iter().map(|f| f.observer(index)).collect(),
             ))),
         };
-        let mut record = match Cell::build(&self.model, &mut rng) {
-            Ok(cell) => {
-                let mut trial = Trial::new(&self.model, self.camera.as_deref(), cell, rng, seed);
-                trial.attach(observer.as_deref_mut(), index);
-                if self.model.scenario().is_stream() {
-                    trial.run_stream(index, seed)
+        let mut record = match CellData::reset(model, seed) {
+            Ok(mut data) => {
+                data.attach(model, observer.take(), index);
+                let sorter = Sorter::new(model, &data, self.camera.as_deref());
+                let record = if model.scenario().is_stream() {
+                    sorter.run_stream(model, &mut data, index)
                 } else {
-                    trial.run_single(index, seed)
-                }
+                    sorter.run_single(model, &mut data, index)
+                };
+                observer = data.detach();
+                record
             }
             Err(e) => TrialRecord::failed(
                 index,

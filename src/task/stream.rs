@@ -5,8 +5,10 @@
 
 use nalgebra::Point3;
 
+use super::cell_data::CellData;
 use super::pick_cycle::Cycle;
-use super::trial::Trial;
+use super::sorter::Sorter;
+use crate::cell::CellModel;
 use crate::outcome::{
     Failure, FailureReason, FaultAction, FaultKind, Misidentification, Outcome, StreamPartRecord,
     StreamRecord, TrialRecord,
@@ -31,16 +33,21 @@ enum AtEye {
     Bottle,
 }
 
-impl Trial<'_> {
+impl Sorter<'_> {
     /// The paper's trial: one part (and its bottle) from the belt into its bin.
-    pub(crate) fn run_single(mut self, index: u32, seed: u64) -> TrialRecord {
-        let cycle = self.single_part();
-        let faults = self.take_fault_records(cycle.failure.is_none());
+    pub(crate) fn run_single(
+        mut self,
+        model: &CellModel,
+        data: &mut CellData,
+        index: u32,
+    ) -> TrialRecord {
+        let cycle = self.single_part(model, data);
+        let faults = data.take_fault_records(cycle.failure.is_none());
         let (failure, detail) = split(cycle.failure);
-        let sim_time_s = self.cell.world.time_s();
+        let sim_time_s = data.cell.world.time_s();
         TrialRecord {
             trial: index,
-            seed,
+            seed: data.seed,
             outcome: Outcome::from_failed(failure.is_some()),
             failure,
             detail,
@@ -52,48 +59,54 @@ impl Trial<'_> {
             distractor_displacement_mm: cycle.displacement_m * 1e3,
             cycle_time_s: cycle.cycle_time_s,
             sim_time_s,
-            motion: self.motion,
-            timing: self.timing,
+            motion: data.motion,
+            timing: data.timing.clone(),
             stream: None,
             faults,
+        }
+    }
+
+    /// The belt run to the photo-eye and the part picked (`Err` when none arrives).
+    fn wait_and_pick(&mut self, model: &CellModel, data: &mut CellData) -> Cycle {
+        match data.wait_for_part(model) {
+            Ok(stopped_s) => {
+                self.pick_time_s = Some(stopped_s);
+                self.pick_cycle(model, data, None)
+            }
+            Err(failure) => self.unreached(model, data, failure),
         }
     }
 
     /// The single part from the belt into its bin, through the faults the controller can
     /// recover from: a trigger with nothing there is run past, and a part the jaws show
     /// dropped is looked for and picked again.
-    fn single_part(&mut self) -> Cycle {
-        let mut cycle = match self.wait_for_part() {
-            Ok(()) => self.pick_cycle(None),
-            Err(failure) => return self.unreached(failure),
-        };
+    fn single_part(&mut self, model: &CellModel, data: &mut CellData) -> Cycle {
+        let mut cycle = self.wait_and_pick(model, data);
         let nothing_seen = cycle
             .failure
             .as_ref()
             .is_some_and(|f| f.reason == FailureReason::NotDetected);
         // Nothing seen and the beam clear again: the eye's trigger was false.
-        if self.scenario.faults.photo_eye.is_some() && nothing_seen && !self.photo_eye_reports() {
-            self.faults
+        if model.scenario().faults.photo_eye.is_some() && nothing_seen && !data.photo_eye_reports()
+        {
+            data.faults
                 .false_trigger_actions
                 .push(FaultAction::IgnoredFalseTrigger);
-            cycle = match self.wait_for_part() {
-                Ok(()) => self.pick_cycle(None),
-                Err(failure) => return self.unreached(failure),
-            };
+            cycle = self.wait_and_pick(model, data);
         }
-        let Some((dropped_at_s, phase)) = self.faults.drop_seen.take() else {
+        let Some((dropped_at_s, phase)) = data.faults.drop_seen.take() else {
             return cycle;
         };
         let mut actions = vec![FaultAction::SawDrop];
         let detail = format!("the grip weakened and the part fell during {phase}");
-        match self.look_again_after_drop() {
+        match self.look_again_after_drop(model, data) {
             Ok(true) => {
                 actions.extend([FaultAction::FoundOnBelt, FaultAction::Repicked]);
-                cycle = self.pick_cycle(None);
+                cycle = self.pick_cycle(model, data, None);
             }
             Ok(false) => {
                 actions.push(FaultAction::CountedLost);
-                let rest = self.part_resting_place();
+                let rest = data.part_resting_place(model, self.current);
                 if let Some(failure) = cycle.failure.as_mut() {
                     failure.detail.push_str(&format!(
                         "; not seen at the pick station again: counted lost (truth: {rest})"
@@ -106,14 +119,14 @@ impl Trial<'_> {
             }
         }
         let sorted = cycle.failure.is_none();
-        self.faults
+        data.faults
             .record(FaultKind::Gripper, dropped_at_s, detail, actions, sorted);
         cycle
     }
 
     /// Points along the photo-eye's beam across the belt, world.
-    fn beam_points(&self) -> Vec<Point3<f64>> {
-        let belt = &self.scenario.conveyor;
+    fn beam_points(model: &CellModel, data: &CellData) -> Vec<Point3<f64>> {
+        let belt = &model.scenario().conveyor;
         let samples = (belt.width_m / BEAM_SAMPLE_M).ceil().max(1.0) as usize;
         let mut points = Vec::with_capacity((samples + 1) * BEAM_HEIGHTS_M.len());
         for height in BEAM_HEIGHTS_M {
@@ -123,7 +136,7 @@ impl Trial<'_> {
                 points.push(Point3::new(
                     belt.photo_eye_x_m,
                     y,
-                    self.cell.belt_top_z + height,
+                    data.cell.belt_top_z + height,
                 ));
             }
         }
@@ -132,9 +145,13 @@ impl Trial<'_> {
 
     /// Identifies what stopped the belt. The truth (which body breaks the beam) only chooses
     /// the part the judge follows; in camera mode the decision comes from the image.
-    fn identify_at_eye(&mut self) -> Result<AtEye, Failure> {
-        let at_eye = self.cell.bodies_at_photo_eye();
-        let true_part = self
+    fn identify_at_eye(
+        &mut self,
+        model: &CellModel,
+        data: &mut CellData,
+    ) -> Result<AtEye, Failure> {
+        let at_eye = data.cell.bodies_at_photo_eye();
+        let true_part = data
             .cell
             .items
             .parts()
@@ -143,7 +160,7 @@ impl Trial<'_> {
         if let Some(i) = true_part {
             self.current = i;
         }
-        let true_bottle = self
+        let true_bottle = data
             .cell
             .items
             .bottles()
@@ -159,12 +176,17 @@ impl Trial<'_> {
                 )),
             };
         };
-        let sighting = self.look(camera, TargetRule::AtBeam(self.beam_points()))?;
+        let beam = TargetRule::AtBeam(Self::beam_points(model, data));
+        let sighting = self.look(model, data, camera, beam)?;
         match (sighting.at_station, true_part) {
             (Some(StationItem::Part), Some(_)) => Ok(AtEye::Part(Some(Box::new(sighting)))),
             (Some(StationItem::Part), None) => {
                 let identified = sighting.target.as_ref().map_or("a part", |t| {
-                    self.catalogue.part(PartTypeId(t.type_index)).name.as_str()
+                    model
+                        .catalogue()
+                        .part(PartTypeId(t.type_index))
+                        .name
+                        .as_str()
                 });
                 self.misidentified = Some(Misidentification {
                     truth: "bottle".to_owned(),
@@ -178,7 +200,7 @@ impl Trial<'_> {
             (Some(StationItem::Bottle(_)), None) => Ok(AtEye::Bottle),
             (Some(StationItem::Bottle(_)), Some(i)) => {
                 self.misidentified = Some(Misidentification {
-                    truth: self.cell.items.parts()[i].instance.type_name.clone(),
+                    truth: data.cell.items.parts()[i].instance.type_name.clone(),
                     identified: "bottle".to_owned(),
                 });
                 Err(Failure::new(
@@ -197,28 +219,36 @@ impl Trial<'_> {
     }
 
     /// A stream trial. The stream halts at its first fault, as a cell does.
-    pub(crate) fn run_stream(mut self, index: u32, seed: u64) -> TrialRecord {
-        let planned = self.scenario.parts_per_trial;
+    pub(crate) fn run_stream(
+        mut self,
+        model: &CellModel,
+        data: &mut CellData,
+        index: u32,
+    ) -> TrialRecord {
+        let planned = model.scenario().parts_per_trial;
         let mut parts: Vec<StreamPartRecord> = Vec::new();
         let (mut bottles_passed, mut belt_stops) = (0u32, 0u32);
         let (mut touched, mut picked, mut displacement_m) = (false, false, 0.0f64);
         let mut first_stop_s = None;
         let mut halt: Option<Failure> = None;
         while parts.len() < planned as usize {
-            if let Err(failure) = self.wait_for_part() {
-                halt = Some(failure);
-                break;
+            match data.wait_for_part(model) {
+                Ok(stopped_s) => self.pick_time_s = Some(stopped_s),
+                Err(failure) => {
+                    halt = Some(failure);
+                    break;
+                }
             }
             belt_stops += 1;
             first_stop_s.get_or_insert(self.pick_time_s.unwrap_or(0.0));
-            match self.identify_at_eye() {
+            match self.identify_at_eye(model, data) {
                 Ok(AtEye::Part(seen)) => {
-                    let cycle = self.pick_cycle(seen.map(|s| *s));
+                    let cycle = self.pick_cycle(model, data, seen.map(|s| *s));
                     touched |= cycle.touched;
                     picked |= cycle.picked;
                     displacement_m = displacement_m.max(cycle.displacement_m);
                     if let Some(bin) = cycle.placed_bin_id {
-                        self.bin_fill[bin.0] += 1;
+                        data.bin_fill[bin.0] += 1;
                     }
                     let failed = cycle.failure.is_some();
                     parts.push(stream_part(count_u32(parts.len()), cycle));
@@ -228,7 +258,7 @@ impl Trial<'_> {
                 }
                 Ok(AtEye::Bottle) => {
                     bottles_passed += 1;
-                    if let Err(failure) = self.let_pass() {
+                    if let Err(failure) = data.let_pass(model) {
                         halt = Some(failure);
                         break;
                     }
@@ -267,11 +297,11 @@ impl Trial<'_> {
             ),
             (None, None) => (None, None),
         };
-        let faults = self.take_fault_records(failure.is_none());
-        let sim_time_s = self.cell.world.time_s();
+        let faults = data.take_fault_records(failure.is_none());
+        let sim_time_s = data.cell.world.time_s();
         TrialRecord {
             trial: index,
-            seed,
+            seed: data.seed,
             outcome: Outcome::from_failed(failure.is_some()),
             failure,
             detail: detail.map(|d| format!("{parts_sorted}/{planned} parts sorted; {d}")),
@@ -283,8 +313,8 @@ impl Trial<'_> {
             distractor_displacement_mm: displacement_m * 1e3,
             cycle_time_s: first_stop_s.map_or(0.0, |t| sim_time_s - t),
             sim_time_s,
-            motion: self.motion,
-            timing: self.timing,
+            motion: data.motion,
+            timing: data.timing.clone(),
             stream: Some(StreamRecord {
                 parts_planned: planned,
                 parts_sorted,

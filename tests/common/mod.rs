@@ -2,6 +2,7 @@
 #![allow(dead_code)]
 
 pub mod fake_cell;
+pub mod shared_batch;
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
