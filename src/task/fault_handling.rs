@@ -329,6 +329,14 @@ impl CellData {
     /// its end; `handled` says whether the trial's item reached its end state.
     pub(crate) fn take_fault_records(&mut self, handled: bool) -> Vec<FaultRecord> {
         let now = self.cell.world.time_s();
+        // A drop the single-part recovery did not take up (a stream halts at it).
+        if let Some((at_s, phase)) = self.faults.drop_seen.take() {
+            let detail =
+                format!("the grip weakened and the part fell during {phase}; the stream halted");
+            let actions = vec![FaultAction::SawDrop];
+            self.faults
+                .record(FaultKind::Gripper, at_s, detail, actions, false);
+        }
         if self.gripper.fault_struck()
             && !self
                 .faults
