@@ -2,11 +2,13 @@
 //! Below the cell, the task layer and the batch driver, which all speak these types.
 
 mod failure;
+mod fault_record;
 mod motion_record;
 mod phase;
 mod trial_record;
 
 pub use failure::{Failure, fail};
+pub use fault_record::{FaultAction, FaultKind, FaultRecord, FaultTally};
 pub use motion_record::MotionRecord;
 pub use phase::{PHASE_COUNT, Phase, PhaseSeconds};
 pub use trial_record::{

@@ -2,7 +2,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::MotionRecord;
+use super::{FaultRecord, MotionRecord};
 
 /// Where perception's answers came from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
@@ -189,6 +189,10 @@ pub struct TrialRecord {
     /// The grasp planned for a single-part trial's part (absent when none was planned).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub grasp: Option<GraspRecord>,
+    /// The faults injected into the trial that struck, in the order they struck, with what
+    /// the controller did and whether the cell recovered (absent when none struck).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub faults: Vec<FaultRecord>,
 }
 
 /// The grasp the planner chose for a part.
@@ -332,6 +336,7 @@ impl TrialRecord {
             timing: TrialTiming::default(),
             stream: None,
             grasp: None,
+            faults: Vec::new(),
         }
     }
 }

@@ -5,6 +5,7 @@
 mod camera_sections;
 mod catalogue;
 mod extends;
+mod faults;
 mod overrides;
 mod robot_arm;
 mod validate;
@@ -18,6 +19,10 @@ pub use camera_sections::{
 };
 pub use catalogue::{BinId, Catalogue, PartKind, PartTypeId, STEEL_DENSITY_KG_M3};
 pub use extends::EXTENDS_KEY;
+pub use faults::{
+    ArmFaultSection, BeltFaultMode, BeltFaultSection, BlackoutMode, CameraFaultSection,
+    FAULT_KINDS, FaultsSection, GripperFaultSection, MAX_FAULT_DURATION_S, PhotoEyeFaultSection,
+};
 pub use overrides::{
     Override, OverrideSyntaxError, SweepAxis, parse_value, split_values, sweep_grid,
 };
@@ -88,6 +93,9 @@ pub struct Scenario {
     /// Sensor and scene realism drawn per image: noise, stains, light and pose variation.
     #[serde(default)]
     pub sensor: SensorSection,
+    /// Faults injected in a share of trials (none when absent).
+    #[serde(default, skip_serializing_if = "FaultsSection::is_empty")]
+    pub faults: FaultsSection,
 }
 
 fn one() -> u32 {

@@ -67,12 +67,12 @@ fn show(value: f64) -> String {
     }
 }
 
-struct Checker<'a> {
+pub(super) struct Checker<'a> {
     file: &'a Path,
 }
 
 impl Checker<'_> {
-    fn fail(&self, key: impl Into<String>, reason: impl Into<String>) -> ScenarioError {
+    pub(super) fn fail(&self, key: impl Into<String>, reason: impl Into<String>) -> ScenarioError {
         ScenarioError {
             file: self.file.to_path_buf(),
             key: key.into(),
@@ -80,7 +80,7 @@ impl Checker<'_> {
         }
     }
 
-    fn positive(&self, key: &str, value: f64) -> Result<(), ScenarioError> {
+    pub(super) fn positive(&self, key: &str, value: f64) -> Result<(), ScenarioError> {
         if value.is_finite() && value > 0.0 {
             Ok(())
         } else {
@@ -91,7 +91,13 @@ impl Checker<'_> {
         }
     }
 
-    fn in_range(&self, key: &str, value: f64, low: f64, high: f64) -> Result<(), ScenarioError> {
+    pub(super) fn in_range(
+        &self,
+        key: &str,
+        value: f64,
+        low: f64,
+        high: f64,
+    ) -> Result<(), ScenarioError> {
         if value.is_finite() && (low..=high).contains(&value) {
             Ok(())
         } else {
@@ -103,7 +109,12 @@ impl Checker<'_> {
     }
 
     /// A positive value no larger than `high`: `(0, high]`.
-    fn positive_up_to(&self, key: &str, value: f64, high: f64) -> Result<(), ScenarioError> {
+    pub(super) fn positive_up_to(
+        &self,
+        key: &str,
+        value: f64,
+        high: f64,
+    ) -> Result<(), ScenarioError> {
         if value.is_finite() && value > 0.0 && value <= high {
             Ok(())
         } else {
@@ -118,7 +129,12 @@ impl Checker<'_> {
     }
 
     /// A point whose every coordinate lies within `reach` of the origin, m.
-    fn point_within(&self, key: &str, point: &[f64; 3], reach: f64) -> Result<(), ScenarioError> {
+    pub(super) fn point_within(
+        &self,
+        key: &str,
+        point: &[f64; 3],
+        reach: f64,
+    ) -> Result<(), ScenarioError> {
         if point.iter().all(|v| v.is_finite() && v.abs() <= reach) {
             Ok(())
         } else {
@@ -132,7 +148,7 @@ impl Checker<'_> {
         }
     }
 
-    fn finite(&self, key: &str, values: &[f64]) -> Result<(), ScenarioError> {
+    pub(super) fn finite(&self, key: &str, values: &[f64]) -> Result<(), ScenarioError> {
         if values.iter().all(|v| v.is_finite()) {
             Ok(())
         } else {
@@ -193,6 +209,7 @@ impl Scenario {
         c.positive_up_to("task.slip_tolerance_m", task.slip_tolerance_m, 1.0)?;
         c.positive_up_to("task.bottle_tolerance_m", task.bottle_tolerance_m, 1.0)?;
         self.validate_camera(&c)?;
+        self.faults.validate(&c)?;
         Ok(())
     }
 

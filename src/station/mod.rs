@@ -6,6 +6,7 @@
 
 pub mod bottle_fit;
 pub mod camera_percept;
+mod frame_check;
 mod percept;
 mod sighting_percept;
 
@@ -14,5 +15,6 @@ pub use camera_percept::{
     BottleSighting, CameraPerception, CameraPerceptionError, PartSighting, Sighting, StationItem,
     TargetRule, measure_in_window, part_window,
 };
+pub use frame_check::{BLANK_LEVEL, black_frame, frame_is_blank};
 pub use percept::{PerceivedObstacle, Percept, bottle_obstacle, part_obstacle};
 pub use sighting_percept::{NEIGHBOURHOOD_M, StationModel};

@@ -84,6 +84,7 @@ impl Sorter<'_> {
     ) -> Cycle {
         let (scenario, catalogue) = (model.scenario(), model.catalogue());
         data.touch_phase = None;
+        data.faults.cycles += 1;
         let part = self.part_record(model, data);
         let (mut decision, mut grasp) = (None, None);
         let result = self.run_cycle(model, data, seen, &mut decision, &mut grasp);
@@ -148,6 +149,12 @@ impl Sorter<'_> {
                         clearance_mm: pick.clearance_m * 1e3,
                         candidates: u32::try_from(pick.candidates).unwrap_or(u32::MAX),
                     });
+                    if !model.scenario().faults.is_empty()
+                        && let Some(percept) = &state.percept
+                    {
+                        // Kept for checking the motions again after a fault.
+                        data.faults.checker = Some(self.planner.checker_for(percept));
+                    }
                     state.pick = Some(pick);
                     state.place = Some(place);
                 }
@@ -157,6 +164,7 @@ impl Sorter<'_> {
                     };
                     let open = self.planner.open_offset_m(percept);
                     data.gripper.set(open, OPEN_FORCE_N);
+                    data.faults.open_m = open;
                     play_part(model, data, phase, &pick.approach, Phase::Approach, None)?;
                 }
                 Phase::Grasp => {
@@ -297,6 +305,11 @@ fn grasp(
     grip_force_n: f64,
     part_radius_m: f64,
 ) -> Result<(), Failure> {
+    if let Some(fault) = data.faults.plan.grip_fault_at(data.faults.grasps) {
+        data.gripper.inject(&fault);
+    }
+    data.faults.grasps += 1;
+    data.faults.held_radius_m = part_radius_m;
     data.gripper.set(0.0, grip_force_n);
     let stroke_s = data.gripper.target_m() / JAW_SPEED_M_S;
     data.settle(model, stroke_s + GRIP_BUILD_S)?;
