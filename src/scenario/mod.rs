@@ -9,6 +9,7 @@ mod faults;
 mod overrides;
 mod robot_arm;
 mod validate;
+mod validate_camera;
 
 use std::path::{Path, PathBuf};
 
