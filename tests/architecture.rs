@@ -52,9 +52,18 @@ const MODULES: [(&str, &[&str]); 18] = [
             "station",
         ],
     ),
+    // Control draws a trial's faults from the scenario's `[faults]` and the trial's seed.
     (
         "control",
-        &["math", "kinematics", "outcome", "sim", "planning"],
+        &[
+            "math",
+            "rng",
+            "kinematics",
+            "scenario",
+            "outcome",
+            "sim",
+            "planning",
+        ],
     ),
     (
         "task",

@@ -227,8 +227,10 @@ fn grasp_holds_by_friction_and_a_weak_grip_lets_the_part_slip() {
         CellTrialRunner::new(scenario, &path, Perception::Oracle).expect("runner builds");
     let firm = runner.run_trial(1, seed);
     assert_eq!(firm.outcome, Outcome::Success, "{:?}", firm.detail);
-    // The same trial with 2 N per jaw: friction cannot carry the tube's weight.
-    runner.set_grip_force_n(2.0);
+    // The same trial with 1 N per jaw: friction cannot carry the tube's weight. (At 2 N the
+    // two pads' friction about equals it, and whether the tube slips out depends on the grasp:
+    // the clearance-ranked search's grasp carried it, 22 mm down the pads.)
+    runner.set_grip_force_n(1.0);
     let weak = runner.run_trial(1, seed);
     assert_eq!(weak.outcome, Outcome::Failure);
     assert!(

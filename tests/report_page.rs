@@ -209,8 +209,8 @@ fn load_in_chromium(page: &Path, screenshot: &Path) -> Value {
 
 #[test]
 fn the_page_loads_in_headless_chromium_with_every_plot_and_frame_drawn() {
-    // Five trials of clutter (2-3 bottles, one 0-10 mm from the part) on its seed: trials 0-3
-    // refused by the planner (no grasp clear of the bottles), trial 4 sorted, so the page has
+    // Five trials of clutter (2-3 bottles, one 0-10 mm from the part) on its seed: trials 0-2
+    // refused by the planner (no grasp clear of the bottles), trials 3-4 sorted, so the page has
     // decisions, failures and their frames.
     let dir = out_dir("browser");
     run(&[

@@ -223,8 +223,34 @@ fn near_gaps_outside_zero_to_half_a_metre_are_refused_with_the_range() {
         let scenario = load(&table).unwrap_or_else(|e| panic!("{fine:?}: {e}"));
         assert_eq!(scenario.bottle.near_gap_range_m, Some(fine));
     }
+    // How many bottles stand near: from 1 to the fewest of count_range.
+    for (count, bad) in [
+        ([1, 1], 2),
+        ([2, 3], 3),
+        ([3, 3], 0),
+        ([4, 6], -1),
+        ([1, 2], i64::MAX),
+    ] {
+        let mut table = base.clone();
+        *slot(&mut table, "bottle.count_range") = ints(&count);
+        *slot(&mut table, "bottle.near_count") = Value::Integer(bad);
+        let err = load(&table).expect_err(&format!("near_count {bad} of {count:?} was accepted"));
+        let want = format!(
+            "edited.toml: bottle.near_count: must lie in [1, {}] (bottle.count_range's fewest), got {bad}",
+            count[0]
+        );
+        assert!(err.starts_with(&want), "{bad}: {err}");
+    }
+    for (count, fine) in [([1, 1], 1), ([2, 3], 2), ([4, 6], 3)] {
+        let mut table = base.clone();
+        *slot(&mut table, "bottle.count_range") = ints(&count);
+        *slot(&mut table, "bottle.near_count") = Value::Integer(fine);
+        let scenario = load(&table).unwrap_or_else(|e| panic!("{fine}: {e}"));
+        assert_eq!(scenario.bottle.near_count, fine);
+    }
     // Unset, the paper's one bottle keeps its centre distance.
     let scenario = load(&base).expect("smoke");
+    assert_eq!(scenario.bottle.near_count, 1);
     assert_eq!(scenario.bottle.near_gap_range_m, None);
     assert_eq!(scenario.bottle.count_range, [1, 1]);
 }

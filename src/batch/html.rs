@@ -172,6 +172,12 @@ impl HtmlPage {
             note = xml_escape(&self.note)
         );
         html.push_str(&self.summary_table());
+        let faults: Vec<_> = self
+            .rows
+            .iter()
+            .map(|b| (b.label.as_str(), &b.report.faults))
+            .collect();
+        html.push_str(&super::html_faults::faults_table(&faults));
         html.push_str("<h2>Success with its Wilson 95 % interval</h2>\n<figure>");
         html.push_str(&self.success_svg()?);
         html.push_str("</figure>\n<h2>Failures by reason</h2>\n<figure>");
@@ -405,6 +411,7 @@ mod tests {
                 part: sorted,
                 decision: Some(decision("axle_a20", 0.11)),
                 cycle_time_s: 7.5,
+                grasp: None,
             }],
             misidentified: Some(Misidentification {
                 truth: "bottle".into(),

@@ -7,6 +7,7 @@ mod batch_plan;
 mod batch_runner;
 mod error;
 mod html;
+mod html_faults;
 mod html_plots;
 mod html_trials;
 mod interrupt;

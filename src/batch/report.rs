@@ -6,6 +6,7 @@ use serde::{Deserialize, Serialize};
 
 use super::batch_listing::BatchListing;
 use super::{Outcome, Perception, Shard, TrialRecord, TrialTiming};
+use crate::outcome::{FaultKind, FaultTally};
 use crate::scenario::UNIDENTIFIED;
 
 /// z for a two-sided 95 % interval.
@@ -270,6 +271,10 @@ pub struct BatchReport {
     /// Per-part figures of stream trials; absent when no trial was a stream.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub stream: Option<StreamSummary>,
+    /// Per fault kind that struck: faults injected, recovered from, and parts lost to them;
+    /// absent when no fault struck.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub faults: BTreeMap<FaultKind, FaultTally>,
     /// The `--min-success` gate, if any.
     pub gate: Option<Gate>,
     /// Wall-clock figures (not deterministic).
@@ -486,6 +491,7 @@ impl BatchReport {
             cycle_time_s,
             parts_per_minute,
             stream,
+            faults: FaultTally::by_kind(records.iter().flat_map(|r| &r.faults)),
             gate: meta.min_success.map(|min_success| Gate {
                 min_success,
                 passed: passes_gate(success_rate, Some(min_success)),

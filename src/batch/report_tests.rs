@@ -120,3 +120,60 @@ fn unidentified_parts_are_counted_and_shown_apart_from_wrong_types() {
     let json = serde_json::to_value(&report).unwrap_or_default();
     assert_eq!(json["sorting"]["unidentified"], 1);
 }
+
+#[test]
+fn faults_are_tallied_per_kind_and_absent_from_a_report_without_them() {
+    use crate::outcome::{FaultAction, FaultKind, FaultRecord};
+    let meta = ReportMeta {
+        scenario: "f".into(),
+        seed: 2,
+        perception: Perception::Camera,
+        scenario_trials: 4,
+        shard: None,
+        interrupted: false,
+        min_success: None,
+    };
+    let mut records: Vec<_> = (0..4).map(|i| record(i, true)).collect();
+    let plain =
+        serde_json::to_value(BatchReport::from_records(&meta, &records)).unwrap_or_default();
+    assert!(plain.get("faults").is_none(), "{plain}");
+    let fault = |kind, recovered, lost_parts| FaultRecord {
+        kind,
+        at_s: 2.0,
+        detail: "test".into(),
+        actions: vec![FaultAction::SawDrop],
+        recovered,
+        lost_parts,
+    };
+    records[0].faults.push(fault(FaultKind::Gripper, true, 0));
+    records[1].faults.push(fault(FaultKind::Gripper, false, 1));
+    records[1].faults.push(fault(FaultKind::Camera, true, 0));
+    let report = BatchReport::from_records(&meta, &records);
+    let json = serde_json::to_value(&report).unwrap_or_default();
+    assert_eq!(
+        json["faults"]["gripper"],
+        serde_json::json!({"injected": 2, "recovered": 1, "lost": 1})
+    );
+    assert_eq!(json["faults"]["camera"]["recovered"], 1);
+    assert!(json["faults"].get("belt").is_none());
+    let back: BatchReport = serde_json::from_value(json).expect("reads back");
+    assert_eq!(back.faults, report.faults);
+    // The page's table lists each kind that struck, and is left out when none did.
+    let table = super::html_faults::faults_table(&[("f<1>", &report.faults)]);
+    assert!(table.contains("<h2>Faults injected</h2>"), "{table}");
+    assert!(
+        table.contains(
+            "<td>f&lt;1&gt;</td><td>gripper</td><td class=\"n\">2</td>\
+             <td class=\"n\">1</td><td class=\"n\">0.500</td><td class=\"n\">1</td>"
+        ),
+        "{table}"
+    );
+    assert!(table.contains("<td>camera</td>") && !table.contains("<td>belt</td>"));
+    let plain = BatchReport::from_records(&meta, &records[2..]);
+    assert_eq!(
+        super::html_faults::faults_table(&[("p", &plain.faults)]),
+        ""
+    );
+    // Suite and sweep rows carry the tally too.
+    assert_eq!(BatchRow::from_report(&report, ".").faults, report.faults);
+}

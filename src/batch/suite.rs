@@ -9,6 +9,7 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 
 use super::{BatchError, BatchReport, CycleTime, Gate, Perception, StreamSummary};
+use crate::outcome::{FaultKind, FaultTally};
 
 /// One batch's headline figures, as a row of a suite or sweep report.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -43,6 +44,9 @@ pub struct BatchRow {
     /// Per-part figures of stream trials; absent for single-part scenarios.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub stream: Option<StreamSummary>,
+    /// Per fault kind that struck: injected, recovered, lost; absent when none struck.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub faults: BTreeMap<FaultKind, FaultTally>,
     /// The `--min-success` gate and its verdict, if any.
     pub gate: Option<Gate>,
     /// Whether the batch stopped early.
@@ -67,6 +71,7 @@ impl BatchRow {
             cycle_time_s: report.cycle_time_s.clone(),
             parts_per_minute: report.parts_per_minute,
             stream: report.stream.clone(),
+            faults: report.faults.clone(),
             gate: report.gate.clone(),
             interrupted: report.interrupted,
         }

@@ -325,8 +325,9 @@ impl Slot<'_> {
     }
 }
 
-/// The trial's bottles around `part`: `bottle.count_range` of them; the first at a gap in
-/// `bottle.near_gap_range_m` from the part when that is set, the others (or all) with their
+/// The trial's bottles around `part`: `bottle.count_range` of them; the first
+/// `bottle.near_count` at a gap in `bottle.near_gap_range_m` from the part when that is set,
+/// the others (or all) with their
 /// centres `bottle.distance_range_m` from the part's and at least [`CLEARANCE_M`] clear of it;
 /// each on the belt, clear of the others by [`CLEARANCE_M`], lying with probability
 /// `bottle.lying_fraction`. Up to 64 random draws a bottle, then a deterministic scan of the
@@ -352,7 +353,7 @@ pub fn place_bottles(
             scenario,
             part,
             placed: &placed,
-            near_gap: if index == 0 {
+            near_gap: if (index as i64) < bottle.near_count {
                 bottle.near_gap_range_m
             } else {
                 None
@@ -395,7 +396,7 @@ pub fn place_bottles(
             }
         }
         let Some(mut placement) = found.or_else(|| slot.search(lying)) else {
-            let wanted = match bottle.near_gap_range_m.filter(|_| index == 0) {
+            let wanted = match slot.near_gap {
                 Some([g0, g1]) => format!("a gap of {g0} to {g1} m from the part"),
                 None => format!(
                     "its centre {} to {} m from the part's and {CLEARANCE_M} m clear of it",

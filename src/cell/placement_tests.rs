@@ -112,6 +112,8 @@ fn random_scenario(rng: &mut SimRng) -> Scenario {
     } else {
         None
     };
+    // Up to every one of the fewest bottles near the part.
+    b.near_count = 1 + rng.below(low as u64) as i64;
     scenario.parts.max_lateral_offset_m = rng.range(0.0, 0.12);
     scenario
 }
@@ -161,7 +163,7 @@ fn placements_keep_every_constraint_over_random_scenarios() {
             let gap = part_disc.gap(print);
             // Check against the brute force too, so that a wrong gap cannot pass both.
             assert!((gap - sampled_gap(&part_disc, print)).abs() < 1e-3);
-            match b.near_gap_range_m.filter(|_| i == 0) {
+            match b.near_gap_range_m.filter(|_| (i as i64) < b.near_count) {
                 Some([g0, g1]) => assert!(
                     gap >= g0 - 1e-6 && gap <= g1 + 1e-6,
                     "{trial}: near gap {gap} outside [{g0}, {g1}]"

@@ -5,7 +5,6 @@ use std::process::ExitCode;
 
 pub mod batch_options;
 pub mod bench;
-pub mod camera_json;
 pub mod demo;
 pub mod detect;
 pub mod kinematics;

@@ -19,7 +19,7 @@ use twincell::render::{CameraRig, ObjectTruth, Renderer, RendererOptions, Shot, 
 use twincell::scenario::Scenario;
 
 use super::BadInput;
-use super::camera_json::CameraJson;
+use twincell::camera::CameraJson;
 
 /// Arguments of `twincell render`.
 #[derive(Debug, Args)]

@@ -2,16 +2,18 @@
 //! Below the cell, the task layer and the batch driver, which all speak these types.
 
 mod failure;
+mod fault_record;
 mod motion_record;
 mod phase;
 mod trial_record;
 
 pub use failure::{Failure, fail};
+pub use fault_record::{FaultAction, FaultKind, FaultRecord, FaultTally};
 pub use motion_record::MotionRecord;
 pub use phase::{PHASE_COUNT, Phase, PhaseSeconds};
 pub use trial_record::{
-    DecisionRecord, FailureReason, Misidentification, Outcome, PartOutcome, PartRecord, Perception,
-    StreamPartRecord, StreamRecord, TrialRecord, TrialTiming,
+    DecisionRecord, FailureReason, GraspRecord, Misidentification, Outcome, PartOutcome,
+    PartRecord, Perception, StreamPartRecord, StreamRecord, TrialRecord, TrialTiming,
 };
 
 /// Runs one trial of a scenario. Implementations must be deterministic in `(index, seed)`.

@@ -2,7 +2,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::MotionRecord;
+use super::{FaultRecord, MotionRecord};
 
 /// Where perception's answers came from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
@@ -186,6 +186,23 @@ pub struct TrialRecord {
     /// described by `part`, `decision` and `placed_bin`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub stream: Option<StreamRecord>,
+    /// The grasp planned for a single-part trial's part (absent when none was planned).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub grasp: Option<GraspRecord>,
+    /// The faults injected into the trial that struck, in the order they struck, with what
+    /// the controller did and whether the cell recovered (absent when none struck).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub faults: Vec<FaultRecord>,
+}
+
+/// The grasp the planner chose for a part.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct GraspRecord {
+    /// Smallest clearance of the robot to the obstacles along descent, grasp and lift, mm; the
+    /// search counts every grasp past 20 mm as equally clear, so 20 is its most.
+    pub clearance_mm: f64,
+    /// How many candidate grasps the search weighed.
+    pub candidates: u32,
 }
 
 /// What happened to one part of a stream.
@@ -207,6 +224,9 @@ pub struct StreamPartRecord {
     pub placed_bin: Option<String>,
     /// Simulated time from the belt's stop for this part to the arm's return home, s.
     pub cycle_time_s: f64,
+    /// The grasp planned for it (absent when none was planned).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub grasp: Option<GraspRecord>,
 }
 
 /// A stream trial: the parts fed, what became of each, and the belt's stops.
@@ -315,6 +335,8 @@ impl TrialRecord {
             motion: MotionRecord::default(),
             timing: TrialTiming::default(),
             stream: None,
+            grasp: None,
+            faults: Vec::new(),
         }
     }
 }

@@ -2,6 +2,7 @@
 
 use nalgebra::{Isometry3, Translation3};
 use rapier3d::geometry::SharedShape;
+use rapier3d::math::Vector;
 use rapier3d::parry::bounding_volume::{Aabb, BoundingVolume};
 use rapier3d::parry::query;
 use rapier3d::prelude::Pose;
@@ -74,6 +75,27 @@ pub struct CollisionHit {
     pub time_s: f64,
 }
 
+/// What parry's f32 distances may come out short by, m: the fingertips stop exactly the
+/// margin above the belt by design, and the distance there comes out a hair under it.
+const F32_SLACK_M: f64 = 1e-4;
+
+/// The nearest pair of a robot shape and an obstacle at one configuration.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Clearance {
+    /// Their distance, m (0 when they touch or overlap).
+    pub distance_m: f64,
+    /// The robot link (or `carried part`).
+    pub link: String,
+    /// The obstacle.
+    pub obstacle: String,
+}
+
+/// The gap between two bounding boxes, m (0 when they overlap).
+fn aabb_gap_m(a: &Aabb, b: &Aabb) -> f64 {
+    let gap = (b.mins - a.maxs).max(a.mins - b.maxs).max(Vector::ZERO);
+    f64::from(gap.length())
+}
+
 /// Checks arm configurations and trajectories against static obstacles with a clearance margin.
 #[derive(Debug, Clone)]
 pub struct CollisionChecker {
@@ -122,6 +144,45 @@ impl CollisionChecker {
         self.obstacles.push(obstacle);
     }
 
+    /// The robot's shapes (and what it carries) placed at configuration `q`, as parry takes
+    /// them, each with its bounding box.
+    fn placed_robot<'s>(
+        &'s self,
+        q: &JointVector,
+        finger_offset_m: f64,
+        carried: Option<&'s Carried>,
+    ) -> Vec<(&'s str, Pose, &'s SharedShape, Aabb)> {
+        let frames = link_frames(&self.model, q);
+        let flange = frames[DOF];
+        let tcp = flange * self.model.flange_from_tcp;
+        let mount_pose = |shape: &RobotShape| match shape.mount {
+            LinkMount::Dh(k) => frames[k.min(DOF)],
+            LinkMount::Finger { sign } => {
+                let shift = sign * (finger_offset_m - self.finger_reference_m);
+                flange * Translation3::new(shift, 0.0, 0.0)
+            }
+        };
+        let mut placed: Vec<(&str, Isometry3<f64>, &SharedShape)> = self
+            .robot
+            .iter()
+            .map(|shape| {
+                let pose = mount_pose(shape) * shape.mount_from_shape;
+                (shape.link.as_str(), pose, &shape.shape)
+            })
+            .collect();
+        if let Some(carried) = carried {
+            placed.push(("carried part", tcp * carried.tcp_from_shape, &carried.shape));
+        }
+        placed
+            .into_iter()
+            .map(|(link, pose, shape)| {
+                let pose = pose_to_physics(&pose);
+                let aabb = shape.compute_aabb(&pose);
+                (link, pose, shape, aabb)
+            })
+            .collect()
+    }
+
     /// The first robot shape within the margin of an obstacle at configuration `q`, skipping
     /// obstacles whose names are in `ignore`.
     pub fn check_configuration(
@@ -131,33 +192,8 @@ impl CollisionChecker {
         carried: Option<&Carried>,
         ignore: &[&str],
     ) -> Option<(String, String)> {
-        let frames = link_frames(&self.model, q);
-        let flange = frames[DOF];
-        let tcp = flange * self.model.flange_from_tcp;
-        let mut placed: Vec<(&str, Isometry3<f64>, &SharedShape)> = self
-            .robot
-            .iter()
-            .map(|shape| {
-                let mount = match shape.mount {
-                    LinkMount::Dh(k) => frames[k.min(DOF)],
-                    LinkMount::Finger { sign } => {
-                        let shift = sign * (finger_offset_m - self.finger_reference_m);
-                        flange * Translation3::new(shift, 0.0, 0.0)
-                    }
-                };
-                (
-                    shape.link.as_str(),
-                    mount * shape.mount_from_shape,
-                    &shape.shape,
-                )
-            })
-            .collect();
-        if let Some(carried) = carried {
-            placed.push(("carried part", tcp * carried.tcp_from_shape, &carried.shape));
-        }
-        for (link, pose, shape) in placed {
-            let pose = pose_to_physics(&pose);
-            let aabb = shape.compute_aabb(&pose).loosened(self.margin_m as f32);
+        for (link, pose, shape, aabb) in self.placed_robot(q, finger_offset_m, carried) {
+            let aabb = aabb.loosened(self.margin_m as f32);
             for (obstacle, (obstacle_pose, obstacle_aabb)) in
                 self.obstacles.iter().zip(&self.placed_obstacles)
             {
@@ -173,7 +209,7 @@ impl CollisionChecker {
                     obstacle_pose,
                     obstacle.shape.as_ref(),
                 ) {
-                    Ok(d) => d.distance < self.margin_m as f32,
+                    Ok(d) => f64::from(d.distance) + F32_SLACK_M < self.margin_m,
                     // Pairs parry cannot measure fall back to an overlap test.
                     Err(_) => query::intersection_test(
                         &pose,
@@ -190,6 +226,95 @@ impl CollisionChecker {
             }
         }
         None
+    }
+
+    /// The smallest distance from a robot shape (or what it carries) at configuration `q` to
+    /// an obstacle not named in `ignore`, when it is below `cap_m`; `None` when every pair is at
+    /// least `cap_m` apart. Pairs whose bounding boxes are `cap_m` apart are not measured.
+    pub fn clearance(
+        &self,
+        q: &JointVector,
+        finger_offset_m: f64,
+        carried: Option<&Carried>,
+        ignore: &[&str],
+        cap_m: f64,
+    ) -> Option<Clearance> {
+        let placed = self.placed_robot(q, finger_offset_m, carried);
+        self.nearest(placed, ignore, cap_m)
+    }
+
+    /// [`Self::clearance`] of the shapes rigid with the flange and the fingers alone: those
+    /// that the TCP's pose places whatever the arm's configuration, so it bounds the whole
+    /// robot's clearance from above for every IK branch of that pose.
+    pub fn tool_clearance(
+        &self,
+        q: &JointVector,
+        finger_offset_m: f64,
+        ignore: &[&str],
+        cap_m: f64,
+    ) -> Option<Clearance> {
+        let placed = self
+            .placed_robot(q, finger_offset_m, None)
+            .into_iter()
+            .zip(&self.robot)
+            .filter(|(_, shape)| {
+                matches!(shape.mount, LinkMount::Dh(DOF) | LinkMount::Finger { .. })
+            })
+            .map(|(placed, _)| placed)
+            .collect();
+        self.nearest(placed, ignore, cap_m)
+    }
+
+    /// The nearest pair of `placed` robot shapes and obstacles below `cap_m` apart.
+    fn nearest(
+        &self,
+        placed: Vec<(&str, Pose, &SharedShape, Aabb)>,
+        ignore: &[&str],
+        cap_m: f64,
+    ) -> Option<Clearance> {
+        let mut nearest: Option<Clearance> = None;
+        let mut limit_m = cap_m;
+        for (link, pose, shape, aabb) in placed {
+            for (obstacle, (obstacle_pose, obstacle_aabb)) in
+                self.obstacles.iter().zip(&self.placed_obstacles)
+            {
+                if ignore.contains(&obstacle.name.as_str()) {
+                    continue;
+                }
+                // Only pairs that could beat the nearest found so far are measured.
+                if !aabb.loosened(limit_m as f32).intersects(obstacle_aabb) {
+                    continue;
+                }
+                let distance_m = match query::distance(
+                    &pose,
+                    shape.as_ref(),
+                    obstacle_pose,
+                    obstacle.shape.as_ref(),
+                ) {
+                    Ok(d) => f64::from(d.distance),
+                    // Pairs parry cannot measure count as touching when they overlap, and
+                    // as the box-to-box gap (a lower bound) when they do not.
+                    Err(_) => match query::intersection_test(
+                        &pose,
+                        shape.as_ref(),
+                        obstacle_pose,
+                        obstacle.shape.as_ref(),
+                    ) {
+                        Ok(hit) if !hit.intersecting => aabb_gap_m(&aabb, obstacle_aabb),
+                        _ => 0.0,
+                    },
+                };
+                if distance_m < limit_m {
+                    limit_m = distance_m;
+                    nearest = Some(Clearance {
+                        distance_m,
+                        link: link.to_string(),
+                        obstacle: obstacle.name.clone(),
+                    });
+                }
+            }
+        }
+        nearest
     }
 
     /// The first collision along `trajectory`, sampled finely enough that no joint moves more

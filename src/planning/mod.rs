@@ -2,6 +2,7 @@
 //! trajectories within the arm's limits.
 
 mod collision;
+mod grasp_search;
 mod payload;
 mod pick_planner;
 #[cfg(test)]
@@ -11,7 +12,12 @@ mod straight_line;
 mod time_scaling;
 mod trajectory;
 
-pub use collision::{Carried, CollisionChecker, CollisionHit, LinkMount, Obstacle, RobotShape};
+pub use collision::{
+    Carried, Clearance, CollisionChecker, CollisionHit, LinkMount, Obstacle, RobotShape,
+};
+pub use grasp_search::{
+    Approach, CLEARANCE_CAP_M, GraspPose, GraspRanking, GraspSearch, ScoredGrasp,
+};
 pub use payload::{GRIP_SAFETY_FACTOR, Payload};
 pub use pick_planner::{
     GRASP_TCP_ABOVE_BOTTOM_M, PART_OBSTACLE, PickPlan, PickPlanner, PlacePlan, bin_slot,

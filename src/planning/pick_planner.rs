@@ -4,10 +4,12 @@
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use rapier3d::geometry::SharedShape;
 
+use super::capture_robot_shapes;
+use super::grasp_search::GraspSearch;
 use super::{
     Carried, CollisionChecker, JointTrajectory, Obstacle, Payload, RobotShape, straight_line,
 };
-use crate::cell::{BinBody, SceneryBox};
+use crate::cell::{BinBody, Cell, CellModel, SceneryBox};
 use crate::kinematics::{AnalyticIk, ArmModel, IkSolver, JointVector};
 use crate::outcome::{Failure, FailureReason, fail};
 use crate::station::Percept;
@@ -16,19 +18,19 @@ use crate::station::Percept;
 /// belt.
 pub const GRASP_TCP_ABOVE_BOTTOM_M: f64 = 0.023;
 /// Approach and retreat distance above grasp and place poses, m.
-const APPROACH_M: f64 = 0.12;
+pub(super) const APPROACH_M: f64 = 0.12;
 /// How far the fingertips reach below the TCP along the tool axis, m.
-const FINGERTIP_BELOW_TCP_M: f64 = 0.015;
+pub(super) const FINGERTIP_BELOW_TCP_M: f64 = 0.015;
 /// Half the width of a finger pad across the jaw axis, m.
-const PAD_HALF_WIDTH_M: f64 = 0.015;
+pub(super) const PAD_HALF_WIDTH_M: f64 = 0.015;
 /// Sample spacing of straight tool lines, m.
-const LINE_STEP_M: f64 = 0.005;
+pub(super) const LINE_STEP_M: f64 = 0.005;
 /// The planner's name for the part while it stands on the belt.
 pub const PART_OBSTACLE: &str = "part";
 /// Distance between neighbouring places for parts in a bin, m.
 const BIN_SLOT_PITCH_M: f64 = 0.09;
 /// Clearance the planner keeps from obstacles, m.
-const PLANNING_MARGIN_M: f64 = 0.008;
+pub(super) const PLANNING_MARGIN_M: f64 = 0.008;
 
 /// The motion of a pick: over the part and down to it.
 #[derive(Debug, Clone)]
@@ -42,6 +44,11 @@ pub struct PickPlan {
     pub lift_path: Vec<JointVector>,
     /// Where the lift ends.
     pub lift_end: JointVector,
+    /// Smallest clearance of the robot to the obstacles along descent, grasp and lift, m (at
+    /// most [`super::CLEARANCE_CAP_M`]: beyond it every grasp counts as clear).
+    pub clearance_m: f64,
+    /// How many candidate grasps the search weighed.
+    pub candidates: usize,
 }
 
 /// The motion of a place: up and over to the bin, down into it, back home.
@@ -98,35 +105,29 @@ pub fn scenery_obstacles(
         .collect()
 }
 
-/// Tilts of the gripper the pick search tries, upright first, deg.
-const TILTS_DEG: [f64; 5] = [0.0, 25.0, -25.0, 40.0, -40.0];
-/// Yaws the pick search tries first at each tilt, from the preferred one, deg.
-pub(super) const COARSE_YAWS_DEG: [f64; 10] = [
-    0.0, 180.0, 30.0, -30.0, 210.0, 150.0, 60.0, -60.0, 90.0, 270.0,
-];
-
-/// Every 10 degrees of yaw that [`COARSE_YAWS_DEG`] leaves out, those nearest the preferred
-/// yaw (or its half-turn, the same jaw line) first.
-pub(super) fn fine_yaws_deg() -> impl Iterator<Item = f64> {
-    let coarse = |deg: f64| {
-        COARSE_YAWS_DEG
-            .iter()
-            .any(|c| (c - deg).rem_euclid(360.0).abs() < 1e-9)
-    };
-    let mut fine: Vec<f64> = (0..36)
-        .map(|k| f64::from(k) * 10.0)
-        .filter(|&deg| !coarse(deg))
-        .collect();
-    // Distance to the jaw line of the preferred yaw: 0 at 0 and 180 degrees, 90 at 90 and 270.
-    let off_line = |deg: f64| {
-        let d = deg.rem_euclid(180.0);
-        d.min(180.0 - d)
-    };
-    fine.sort_by(|a, b| off_line(*a).total_cmp(&off_line(*b)).then(a.total_cmp(b)));
-    fine.into_iter()
-}
-
 impl PickPlanner {
+    /// The planner of `model`'s arm in `cell` as built for a trial: the arm's model and IK, its
+    /// collision shapes captured at home, the cell's scenery, and the scenario's speeds.
+    pub fn for_cell(model: &CellModel, cell: &Cell) -> Self {
+        let scenario = model.scenario();
+        let arm = model.arm_model().clone();
+        let home = scenario.robot.home_q_rad;
+        let world_from_base = *cell.arm.world_from_base();
+        Self {
+            robot_shapes: capture_robot_shapes(&cell.world, &cell.arm, &arm, &home),
+            model: arm,
+            ik: model.ik().clone(),
+            world_from_base,
+            finger_reference_m: cell.finger_reference_m,
+            obstacles: scenery_obstacles(&cell.scenery, &world_from_base.inverse()),
+            belt_top_z: cell.belt_top_z,
+            open_clearance_m: scenario.gripper.open_clearance_m,
+            speed_fraction: scenario.robot.speed_fraction,
+            carry_speed_fraction: scenario.robot.carry_speed_fraction,
+            home_q_rad: home,
+        }
+    }
+
     /// The collision checker for a pick of `percept`'s part: the cell's obstacles, the part
     /// itself (until the fingers go down around it) and what perception saw near it.
     pub fn checker_for(&self, percept: &Percept) -> CollisionChecker {
@@ -172,7 +173,12 @@ impl PickPlanner {
     /// TCP pose in the arm's base frame: pointing down, fingers along world yaw, at world xyz,
     /// the gripper leaning by `tilt_rad` about its own finger axis (the jaws still close
     /// horizontally; the wrist swings to one side).
-    fn base_from_tcp(&self, xyz: Vector3<f64>, yaw_rad: f64, tilt_rad: f64) -> Isometry3<f64> {
+    pub(super) fn base_from_tcp(
+        &self,
+        xyz: Vector3<f64>,
+        yaw_rad: f64,
+        tilt_rad: f64,
+    ) -> Isometry3<f64> {
         let world_from_tcp = Isometry3::from_parts(
             Translation3::from(xyz),
             UnitQuaternion::from_euler_angles(0.0, 0.0, yaw_rad)
@@ -182,110 +188,76 @@ impl PickPlanner {
         self.world_from_base.inverse() * world_from_tcp
     }
 
-    /// The first collision-free pick of `percept`'s part from the arm at `q_now`: upright first,
-    /// then leaning, each at yaws from the one that closes the fingers across the line to the
-    /// nearest obstacle, every IK branch nearest first.
+    /// The pick of `percept`'s part from the arm at `q_now` with the most clearance: every
+    /// candidate over yaw, lean, approach and IK branch ranked by its smallest clearance to the
+    /// obstacles along descent, grasp and lift (see [`GraspSearch`]), the best whose whole
+    /// motion passes the planning margin taken.
     pub fn plan_pick(
         &self,
         percept: &Percept,
         checker: &CollisionChecker,
         q_now: &JointVector,
     ) -> Result<PickPlan, Failure> {
-        let belt_top = self.belt_top_z;
         let [x, y] = percept.part_xy;
-        let grasp_z = belt_top + GRASP_TCP_ABOVE_BOTTOM_M;
-        let obstacle_top = percept
-            .obstacles
-            .iter()
-            .map(|o| o.top_z)
-            .fold(belt_top, f64::max);
-        // Lift so the part's bottom clears the bottle and the rails.
-        let lift_z = grasp_z + (obstacle_top - belt_top + 0.04).max(APPROACH_M);
-        // Come down from above the bottle: the fingertips hang 15 mm below the TCP.
-        let approach_z = (grasp_z + APPROACH_M).max(obstacle_top + 0.015 + 0.03);
-        // Fingers close across the line to the bottle, so neither finger passes near it.
-        let nearest = percept.obstacles.iter().min_by(|a, b| {
-            let d = |o: &Isometry3<f64>| (o.translation.x - x).hypot(o.translation.y - y);
-            d(&a.world_from_shape).total_cmp(&d(&b.world_from_shape))
-        });
-        let preferred_yaw = nearest.map_or(0.0, |o| {
-            let t = o.world_from_shape.translation;
-            (t.y - y).atan2(t.x - x) + std::f64::consts::FRAC_PI_2
-        });
+        let ranking = GraspSearch::new(self, percept, checker, q_now).rank();
         let open = self.open_offset_m(percept);
         let speed = self.speed_fraction;
-        let mut reachable = false;
+        let tried = ranking.candidates;
         let mut last_hit = String::new();
-        // Upright first, then leaning away from either side: a tall bottle next to the part can
-        // stand where an upright wrist or forearm would pass.
-        let candidates = TILTS_DEG.into_iter().flat_map(|tilt_deg| {
-            COARSE_YAWS_DEG
-                .into_iter()
-                .map(move |offset_deg: f64| (tilt_deg, offset_deg))
-        });
-        // Then, when none of those is clear, the yaws between them every 10 degrees, nearest
-        // the preferred first: with several bottles around the part, the one near it fixes the
-        // jaws' line within a few degrees and another bottle can stand on that line. These come
-        // after every coarse candidate, so a pick that one of those allowed is planned as before.
-        let fine = TILTS_DEG
-            .into_iter()
-            .flat_map(|tilt_deg| fine_yaws_deg().map(move |offset_deg| (tilt_deg, offset_deg)));
-        for (tilt_deg, offset_deg) in candidates.chain(fine) {
-            let yaw = preferred_yaw + f64::to_radians(offset_deg);
-            let tilt = f64::to_radians(tilt_deg);
-            // A leaning jaw's lower corner hangs deeper: raise the TCP to keep the tips clear.
-            let corner_drop =
-                FINGERTIP_BELOW_TCP_M * (tilt.cos() - 1.0) + PAD_HALF_WIDTH_M * tilt.abs().sin();
-            let grasp_z = grasp_z + corner_drop.max(0.0);
-            let above = self.base_from_tcp(Vector3::new(x, y, approach_z), yaw, tilt);
-            let at = self.base_from_tcp(Vector3::new(x, y, grasp_z), yaw, tilt);
-            let lifted = self.base_from_tcp(Vector3::new(x, y, lift_z), yaw, tilt);
-            // Every arm configuration over the part, nearest first: another wrist or elbow
-            // branch can keep the links off a bottle that the nearest one would hit.
-            for q_above in self.ik.solve(&above).by_distance_from(q_now) {
-                // Straight down onto the part and straight up again: a joint-space move would
-                // swing the open fingers centimetres off the part's axis.
-                let Some(down) = straight_line(&self.ik, &above, &at, &q_above, LINE_STEP_M) else {
-                    continue;
-                };
-                let q_at = down[down.len() - 1];
-                let Some(up) = straight_line(&self.ik, &at, &lifted, &q_at, LINE_STEP_M) else {
-                    continue;
-                };
-                let q_lift = up[up.len() - 1];
-                reachable = true;
-                let to_pregrasp = JointTrajectory::through(&self.model, &[*q_now, q_above], speed);
-                let descend = JointTrajectory::along(&self.model, down, speed);
-                // The descent starts while the arm still slows down over the part: the fingers
-                // leave the straight line only in that overlap, which is checked against the
-                // part too; after it the fingers go down around the part.
-                let approach = JointTrajectory::join(vec![to_pregrasp, descend], true);
-                let blend_end_s = approach.part_ends_s()[0];
-                // The descent first: a pick that fails, fails there, by the bottle.
-                let down_s = (blend_end_s, approach.duration_s());
-                let hit = checker
-                    .check_span(&approach, down_s, open, None, &[PART_OBSTACLE])
-                    .or_else(|| checker.check_span(&approach, (0.0, blend_end_s), open, None, &[]));
-                match hit {
-                    Some(hit) => {
-                        last_hit = format!(
-                            "{} would hit {} at yaw {offset_deg} deg",
-                            hit.link, hit.obstacle
-                        )
-                    }
-                    None => {
-                        return Ok(PickPlan {
-                            approach,
-                            pregrasp: q_above,
-                            lift_path: up,
-                            lift_end: q_lift,
-                        });
-                    }
+        for grasp in &ranking.grasps {
+            if grasp.clearance_m < PLANNING_MARGIN_M {
+                if let Some(near) = &grasp.nearest {
+                    last_hit = format!(
+                        "{} would pass {:.1} mm from {} at yaw {:.0} deg, lean {:.0} deg",
+                        near.link,
+                        near.distance_m * 1e3,
+                        near.obstacle,
+                        grasp.pose.yaw_rad.to_degrees(),
+                        grasp.pose.tilt_rad.to_degrees(),
+                    );
+                }
+                break;
+            }
+            let (Some(&q_above), Some(&q_lift)) = (grasp.down.first(), grasp.up.last()) else {
+                continue;
+            };
+            let to_pregrasp = JointTrajectory::through(&self.model, &[*q_now, q_above], speed);
+            let descend = JointTrajectory::along(&self.model, grasp.down.clone(), speed);
+            // The descent starts while the arm still slows down over the part: the fingers
+            // leave the straight line only in that overlap, which is checked against the part
+            // too; after it the fingers go down around the part.
+            let approach = JointTrajectory::join(vec![to_pregrasp, descend], true);
+            let blend_end_s = approach.part_ends_s()[0];
+            let down_s = (blend_end_s, approach.duration_s());
+            let hit = checker
+                .check_span(&approach, down_s, open, None, &[PART_OBSTACLE])
+                .or_else(|| checker.check_span(&approach, (0.0, blend_end_s), open, None, &[]));
+            match hit {
+                Some(hit) => {
+                    last_hit = format!(
+                        "{} would hit {} at yaw {:.0} deg",
+                        hit.link,
+                        hit.obstacle,
+                        grasp.pose.yaw_rad.to_degrees()
+                    )
+                }
+                None => {
+                    return Ok(PickPlan {
+                        approach,
+                        pregrasp: q_above,
+                        lift_path: grasp.up.clone(),
+                        lift_end: q_lift,
+                        clearance_m: grasp.clearance_m,
+                        candidates: tried,
+                    });
                 }
             }
         }
-        if reachable {
-            fail(FailureReason::Collision, last_hit)
+        if ranking.reachable {
+            fail(
+                FailureReason::Collision,
+                format!("no grasp clear of the obstacles among {tried} candidates: {last_hit}"),
+            )
         } else {
             fail(
                 FailureReason::Unreachable,

@@ -3,7 +3,8 @@
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use rapier3d::geometry::SharedShape;
 
-use super::pick_planner::{COARSE_YAWS_DEG, fine_yaws_deg};
+use super::grasp_search::GraspSearch;
+use super::grasp_search::{COARSE_YAWS_DEG, fine_yaws_deg};
 use super::*;
 use crate::cell::BinBody;
 use crate::kinematics::{AnalyticIk, ArmModel, gripper_tcp, tcp_pose};
@@ -341,4 +342,214 @@ fn the_fine_yaws_fill_the_gaps_between_the_coarse_ones_nearest_the_jaw_line_firs
     assert_eq!(&fine[..4], &[10.0, 170.0, 190.0, 350.0]);
     let off_line = |d: f64| (d % 180.0).min(180.0 - d % 180.0);
     assert!(fine.windows(2).all(|w| off_line(w[0]) <= off_line(w[1])));
+}
+
+/// A wall standing on the belt: `length` along `direction_rad`'s normal, its inner face
+/// `gap_m` from the part's axis at `part` in direction `direction_rad`, 120 mm high.
+fn wall(part: [f64; 2], direction_rad: f64, gap_m: f64) -> PerceivedObstacle {
+    let (half_thick, half_long, half_high) = (0.005, 0.1, 0.06);
+    let centre = gap_m + half_thick;
+    PerceivedObstacle {
+        name: "wall",
+        world_from_shape: Isometry3::from_parts(
+            Translation3::new(
+                part[0] + centre * direction_rad.cos(),
+                part[1] + centre * direction_rad.sin(),
+                BELT_TOP_Z + half_high,
+            ),
+            UnitQuaternion::from_euler_angles(0.0, 0.0, direction_rad),
+        ),
+        shape: SharedShape::cuboid(half_thick as f32, half_long as f32, half_high as f32),
+        top_z: BELT_TOP_Z + 2.0 * half_high,
+    }
+}
+
+/// The smallest distance from the robot to the percept's obstacles (not the part, not the
+/// belt) over `configurations`, each with its finger offset, capped.
+fn measured_clearance(
+    planner: &PickPlanner,
+    percept: &Percept,
+    configurations: &[([f64; 6], f64)],
+) -> f64 {
+    let base_from_world = planner.world_from_base.inverse();
+    let walls = percept
+        .obstacles
+        .iter()
+        .map(|o| Obstacle {
+            name: o.name.into(),
+            base_from_shape: base_from_world * o.world_from_shape,
+            shape: o.shape.clone(),
+        })
+        .collect();
+    let checker = CollisionChecker::new(
+        planner.model.clone(),
+        planner.robot_shapes.clone(),
+        planner.finger_reference_m,
+        walls,
+        0.0,
+    );
+    configurations
+        .iter()
+        .filter_map(|(q, fingers)| checker.clearance(q, *fingers, None, &[], CLEARANCE_CAP_M))
+        .map(|c| c.distance_m)
+        .fold(CLEARANCE_CAP_M, f64::min)
+}
+
+/// The descent (after the blend) and the lift of `plan`, sampled, with the jaws open.
+fn descent_and_lift(
+    planner: &PickPlanner,
+    percept: &Percept,
+    plan: &PickPlan,
+) -> Vec<([f64; 6], f64)> {
+    let open = planner.open_offset_m(percept);
+    let start = plan.approach.part_ends_s()[0];
+    let steps = 200;
+    let mut configurations: Vec<([f64; 6], f64)> = (0..=steps)
+        .filter_map(|k| {
+            let t = start + (plan.approach.duration_s() - start) * f64::from(k) / f64::from(steps);
+            plan.approach.sample(t).map(|s| (s.q, open))
+        })
+        .collect();
+    // The lift is scored with the jaws open: their envelope holds the closed jaws'.
+    configurations.extend(plan.lift_path.iter().map(|q| (*q, open)));
+    configurations
+}
+
+#[test]
+fn a_part_boxed_in_on_three_sides_is_picked_with_the_most_clearance_there_is() {
+    let planner = planner();
+    let mut rng = crate::rng::SimRng::new(25);
+    for draw in 0..5 {
+        let part = [rng.range(-0.05, 0.15), rng.range(-0.5, -0.4)];
+        let open_side = rng.range(0.0, std::f64::consts::TAU);
+        let gap = rng.range(0.055, 0.08);
+        let walls = (1..4)
+            .map(|k| {
+                wall(
+                    part,
+                    open_side + f64::from(k) * std::f64::consts::FRAC_PI_2,
+                    gap,
+                )
+            })
+            .collect();
+        let percept = percept(part, walls);
+        let checker = planner.checker_for(&percept);
+        let plan = match planner.plan_pick(&percept, &checker, &home()) {
+            Ok(plan) => plan,
+            Err(f) => panic!(
+                "draw {draw}: no pick in a box {gap} m wide open at {open_side} rad: {}",
+                f.detail
+            ),
+        };
+        // The clearance the plan reports is the one its motion has, within the spacing of
+        // the samples the search scored.
+        let measured = measured_clearance(
+            &planner,
+            &percept,
+            &descent_and_lift(&planner, &percept, &plan),
+        );
+        assert!(
+            plan.clearance_m >= 0.008,
+            "draw {draw}: {}",
+            plan.clearance_m
+        );
+        assert!(
+            (measured - plan.clearance_m).abs() < 1e-3,
+            "draw {draw}: reports {} m, measured {measured} m",
+            plan.clearance_m
+        );
+        // The best of all candidates, not the first that passes: no candidate of the grid,
+        // scored in full, clears the walls by more.
+        let search = GraspSearch::new(&planner, &percept, &checker, &home());
+        let best_of_grid = search
+            .exhaustive()
+            .iter()
+            .map(|g| g.clearance_m)
+            .fold(f64::NEG_INFINITY, f64::max);
+        assert!(
+            plan.clearance_m >= best_of_grid - 1e-9,
+            "draw {draw}: chose {} m, the grid has {best_of_grid} m",
+            plan.clearance_m
+        );
+        assert!(
+            plan.candidates > 100,
+            "draw {draw}: {} candidates",
+            plan.candidates
+        );
+    }
+}
+
+#[test]
+fn a_free_part_keeps_the_preferred_grasp_at_full_clearance() {
+    let planner = planner();
+    let percept = percept([0.05, -0.45], Vec::new());
+    let checker = planner.checker_for(&percept);
+    let Ok(plan) = planner.plan_pick(&percept, &checker, &home()) else {
+        panic!("no pick for a free part");
+    };
+    assert_eq!(plan.clearance_m, CLEARANCE_CAP_M);
+    let ranking = GraspSearch::new(&planner, &percept, &checker, &home()).rank();
+    // The first candidate reaches the cap and nothing else is scored.
+    assert_eq!(ranking.scored, 1);
+    assert_eq!(ranking.grasps[0].pose.tilt_rad, 0.0);
+}
+
+#[test]
+fn a_bottle_near_the_part_gets_the_grasp_that_clears_it_most() {
+    let planner = planner();
+    let mut rng = crate::rng::SimRng::new(2501);
+    for draw in 0..4 {
+        let part = [rng.range(-0.05, 0.15), rng.range(-0.5, -0.4)];
+        let angle = rng.range(0.0, std::f64::consts::TAU);
+        // A gap of 15-40 mm between the bottle's and the part's footprints: some grasps pass
+        // it, others would touch it.
+        let centre = 0.02 + 0.033 + rng.range(0.015, 0.04);
+        let standing = Isometry3::translation(
+            part[0] + centre * angle.cos(),
+            part[1] + centre * angle.sin(),
+            BELT_TOP_Z,
+        );
+        let percept = percept(
+            part,
+            vec![bottle_obstacle(&bottle(), &standing, false, 0.0)],
+        );
+        let checker = planner.checker_for(&percept);
+        let search = GraspSearch::new(&planner, &percept, &checker, &home());
+        let ranking = search.rank();
+        let all = search.exhaustive();
+        let best_of_grid = all
+            .iter()
+            .map(|g| g.clearance_m)
+            .fold(f64::NEG_INFINITY, f64::max);
+        let Some(best) = ranking.grasps.first() else {
+            panic!("draw {draw}: nothing scored");
+        };
+        assert!(best.clearance_m >= best_of_grid - 1e-9, "draw {draw}");
+        // Ranked best first, each clearance below the cap set by a named pair.
+        assert!(
+            ranking
+                .grasps
+                .windows(2)
+                .all(|w| w[0].clearance_m >= w[1].clearance_m)
+        );
+        if best.clearance_m < CLEARANCE_CAP_M {
+            let Some(near) = &best.nearest else {
+                panic!("draw {draw}: no nearest pair below the cap");
+            };
+            assert_eq!(near.obstacle, "bottle");
+        }
+        // Candidates differ: ranking is not a formality here.
+        let worst = all
+            .iter()
+            .map(|g| g.clearance_m)
+            .fold(f64::INFINITY, f64::min);
+        assert!(
+            best_of_grid > worst + 0.005,
+            "draw {draw}: {worst} .. {best_of_grid}"
+        );
+        assert!(
+            ranking.scored < all.len(),
+            "draw {draw}: the bound pruned nothing"
+        );
+    }
 }

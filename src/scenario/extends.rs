@@ -110,8 +110,9 @@ impl ScenarioDocument {
         self.sources.len() > 1
     }
 
-    /// The file that set `key` (a dotted path as validation names it, e.g. `bins[2].size_m`),
-    /// or the extending file when none of the files did (a default).
+    /// The file that set `key` (a dotted path as validation names it, e.g. `bins[2].size_m`;
+    /// for a table, the file that set a key inside it last), or the extending file when none
+    /// of the files did (a default).
     pub(super) fn file_of(&self, key: &str) -> &Path {
         let top = self.sources[0].0.as_path();
         let plain: Vec<&str> = key
@@ -122,10 +123,12 @@ impl ScenarioDocument {
             .rev()
             .find_map(|n| {
                 let prefix = plain[..n].join(".");
+                // A key that names a table was set by the file that set keys inside it.
+                let inside = format!("{prefix}.");
                 self.provenance
                     .iter()
                     .rev()
-                    .find(|(k, _)| *k == prefix)
+                    .find(|(k, _)| *k == prefix || k.starts_with(&inside))
                     .map(|(_, file)| file.as_path())
             })
             .unwrap_or(top)

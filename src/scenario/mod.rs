@@ -5,10 +5,12 @@
 mod camera_sections;
 mod catalogue;
 mod extends;
+mod faults;
 mod overrides;
 mod robot_arm;
 mod separability;
 mod validate;
+mod validate_camera;
 
 use std::path::{Path, PathBuf};
 
@@ -19,6 +21,10 @@ pub use camera_sections::{
 };
 pub use catalogue::{BinId, Catalogue, PartKind, PartTypeId, STEEL_DENSITY_KG_M3};
 pub use extends::EXTENDS_KEY;
+pub use faults::{
+    ArmFaultSection, BeltFaultMode, BeltFaultSection, BlackoutMode, CameraFaultSection,
+    FAULT_KINDS, FaultsSection, GripperFaultSection, MAX_FAULT_DURATION_S, PhotoEyeFaultSection,
+};
 pub use overrides::{
     Override, OverrideSyntaxError, SweepAxis, parse_value, split_values, sweep_grid,
 };
@@ -93,6 +99,9 @@ pub struct Scenario {
     /// Sensor and scene realism drawn per image: noise, stains, light and pose variation.
     #[serde(default)]
     pub sensor: SensorSection,
+    /// Faults injected in a share of trials (none when absent).
+    #[serde(default, skip_serializing_if = "FaultsSection::is_empty")]
+    pub faults: FaultsSection,
 }
 
 fn one() -> u32 {
@@ -366,6 +375,10 @@ pub struct BottleSection {
     /// `distance_range_m` from the part's and at least 10 mm clear of it.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub near_gap_range_m: Option<[f64; 2]>,
+    /// How many of the bottles, the first ones, stand at `near_gap_range_m` from the part when
+    /// that is set (at least 1, at most `count_range`'s fewest). Signed for the same reason as
+    /// `count_range`.
+    pub near_count: i64,
 }
 
 impl Default for BottleSection {
@@ -379,6 +392,7 @@ impl Default for BottleSection {
             lying_fraction: 0.0,
             count_range: [1, 1],
             near_gap_range_m: None,
+            near_count: 1,
         }
     }
 }

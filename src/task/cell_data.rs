@@ -8,10 +8,11 @@ use std::time::Instant;
 use nalgebra::Isometry3;
 use rapier3d::prelude::*;
 
+use super::fault_handling::FaultLog;
 use super::feeder::Feeder;
 use super::observer::{CellView, ObserverSlot, PerceptionFrame, TrialObserver};
 use crate::cell::{Cell, CellError, CellModel};
-use crate::control::{BeltDrive, GripperDrive};
+use crate::control::{BeltDrive, FaultPlan, GripperDrive};
 use crate::kinematics::{ArmModel, JointVector};
 use crate::outcome::{Failure, FailureReason, MotionRecord, Phase, TrialTiming, fail};
 use crate::rng::SimRng;
@@ -44,6 +45,8 @@ pub struct CellData {
     /// How the arm has moved so far, as measured in the physics.
     pub(crate) motion: MotionRecord,
     pub(crate) timing: TrialTiming,
+    /// The faults drawn for this trial from its seed, and what has come of them.
+    pub(crate) faults: FaultLog,
     /// The joint angles measured after the last step, rad.
     measured_q: JointVector,
     observer: ObserverSlot,
@@ -62,10 +65,16 @@ impl CellData {
             joint_limit_margin_rad: limit_margin_rad(model.arm_model(), &measured_q),
             ..MotionRecord::default()
         };
+        let faults = FaultLog::new(FaultPlan::draw(scenario, seed));
+        let mut belt = BeltDrive::with_creep(scenario.conveyor.creep_speed_m_s);
+        if let Some(fault) = &faults.plan.belt {
+            belt.inject(fault);
+        }
         Ok(Self {
+            faults,
             seed,
             shots: 0,
-            belt: BeltDrive::with_creep(scenario.conveyor.creep_speed_m_s),
+            belt,
             gripper: GripperDrive::new(cell.finger_reference_m, scenario.gripper.grip_force_n),
             feeder,
             phase: Phase::Wait,
@@ -135,6 +144,10 @@ impl CellData {
         let started = Instant::now();
         self.cell.step();
         self.timing.physics_ms += started.elapsed().as_secs_f64() * 1e3;
+        if self.faults.plan.photo_eye_lies() {
+            let beam = self.cell.photo_eye_blocked();
+            self.faults.eye_reports = self.faults.eye.read(beam, self.cell.world.time_s());
+        }
         self.measure_motion(model.arm_model(), dt);
         let view = view_of(&self.cell, self.phase, self.q, &self.gripper);
         self.observer.step(&view);

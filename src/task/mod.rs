@@ -3,6 +3,7 @@
 //! camera percept adapters; and the judging of outcomes against the truth.
 
 mod cell_data;
+mod fault_handling;
 mod feeder;
 pub mod judge;
 mod motion_stages;

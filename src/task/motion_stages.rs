@@ -5,7 +5,7 @@
 use super::cell_data::CellData;
 use super::phase::PhaseDeadline;
 use crate::cell::CellModel;
-use crate::control::{HoldMonitor, TrajectoryFollower};
+use crate::control::{HoldMonitor, TrajectoryFollower, TrajectoryStop};
 use crate::outcome::{Failure, Phase};
 use crate::planning::JointTrajectory;
 
@@ -27,12 +27,18 @@ impl CellData {
         let deadline = PhaseDeadline::start(Phase::Wait, self.cell.world.time_s(), &scenario.task);
         // Hold the arm at home while waiting.
         self.hold();
-        while !self.cell.photo_eye_blocked() {
-            if let Some(deadline) = &deadline {
-                deadline.check(self.cell.world.time_s())?;
+        let commanded_before_m = self.belt.commanded_travel_m();
+        let encoder_before_m = self.belt.encoder_travel_m();
+        while !self.photo_eye_reports() {
+            if let Some(deadline) = &deadline
+                && let Err(failure) = deadline.check(self.cell.world.time_s())
+            {
+                let before = (commanded_before_m, encoder_before_m);
+                return Err(self.timed_out_feed(model, failure, before));
             }
             self.step(model)?;
         }
+        self.note_belt_arrival(commanded_before_m, encoder_before_m);
         self.belt.run_at(0.0);
         while self.cell.conveyor.speed_m_s() > 0.0 {
             self.step(model)?;
@@ -57,7 +63,7 @@ impl CellData {
         self.phase = Phase::Pass;
         self.belt.run_at(scenario.conveyor.speed_m_s);
         let deadline = PhaseDeadline::start(Phase::Pass, self.cell.world.time_s(), &scenario.task);
-        while self.cell.photo_eye_blocked() {
+        while self.photo_eye_reports() {
             if let Some(deadline) = &deadline {
                 deadline.check(self.cell.world.time_s())?;
             }
@@ -88,16 +94,36 @@ impl CellData {
         held: Option<Held<'_>>,
     ) -> Result<(), Failure> {
         self.phase = phase;
-        let follower = TrajectoryFollower::new(trajectory.clone(), 0.0);
+        let mut follower = TrajectoryFollower::new(trajectory.clone(), 0.0);
+        let cycle = self.faults.cycles.saturating_sub(1);
+        let stop = self
+            .faults
+            .plan
+            .arm_stop_in(cycle, phase)
+            .map(|stop| TrajectoryStop {
+                at_s: from_s + stop.at_fraction * (to_s - from_s).max(0.0),
+                duration_s: stop.duration_s,
+            });
+        if let Some(stop) = stop {
+            follower = follower.with_stop(stop);
+        }
         // Each command aims at the end of the coming step; the span's last one at `to_s`
         // exactly, so that the next span starts where this one stopped.
         let dt = self.cell.world.params().dt_s;
-        let span_s = (to_s - from_s).max(0.0);
+        let span_s = (follower.elapsed_s_at(to_s) - from_s).max(0.0);
         let steps = (span_s / dt - 1e-9).ceil().max(0.0) as usize;
         let settle_steps = (settle_s / dt - 1e-9).ceil().max(0.0) as usize;
+        let mut stop_began_s = None;
         for step in 0..steps + settle_steps {
             if step < steps {
                 let t_s = from_s + (dt * (step + 1) as f64).min(span_s);
+                if follower.stopped_at(t_s) {
+                    stop_began_s.get_or_insert(self.cell.world.time_s());
+                } else if let (Some(began_s), Some(stop)) = (stop_began_s.take(), stop) {
+                    // The servos release: the rest of the motion is checked again first.
+                    let span = (stop.at_s, to_s);
+                    self.resume_after_stop(phase, trajectory, span, began_s, held.is_some())?;
+                }
                 if let Some(sample) = follower.command_at(&mut self.cell.world, &self.cell.arm, t_s)
                 {
                     self.q = sample.q;
@@ -113,7 +139,7 @@ impl CellData {
                     let tcp_from_part = self.tcp_from_part(model.arm_model(), part)?;
                     let drift_mm = monitor.drift_m(&tcp_from_part) * 1e3;
                     self.motion.grip_drift_mm = self.motion.grip_drift_mm.max(drift_mm);
-                    monitor.check(phase, &tcp_from_part)?;
+                    self.watch_grip(model, phase, monitor, &tcp_from_part)?;
                 }
             }
         }

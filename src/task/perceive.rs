@@ -34,7 +34,11 @@ impl Sorter<'_> {
                 let sighting = self.look(model, data, camera, TargetRule::NearestStation)?;
                 percept_from(model, data, &sighting)
             }
-            (None, None) => perceive_oracle(model, data, self.current),
+            (None, None) => {
+                // The oracle stands in for the camera's frames, and waits out a blackout too.
+                data.await_frames(model)?;
+                perceive_oracle(model, data, self.current)
+            }
         }
     }
 
@@ -47,6 +51,7 @@ impl Sorter<'_> {
         camera: &CameraPerception,
         rule: TargetRule,
     ) -> Result<Sighting, Failure> {
+        data.await_frames(model)?;
         let scenario = model.scenario();
         let scene = Scene::from_cell(&data.cell, scenario);
         let mut rng = SimRng::derive(data.seed ^ CAMERA_SALT, data.shots);

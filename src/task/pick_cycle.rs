@@ -9,7 +9,9 @@ use super::motion_stages::Held;
 use super::sorter::Sorter;
 use crate::cell::CellModel;
 use crate::control::HoldMonitor;
-use crate::outcome::{DecisionRecord, Failure, FailureReason, PartRecord, Phase, fail};
+use crate::outcome::{
+    DecisionRecord, Failure, FailureReason, GraspRecord, PartRecord, Phase, fail,
+};
 use crate::planning::{JointTrajectory, Payload, PickPlan, PlacePlan};
 use crate::scenario::{BinId, PartTypeId, UNIDENTIFIED};
 use crate::sim::JAW_SPEED_M_S;
@@ -36,6 +38,7 @@ pub(crate) struct Cycle {
     pub(crate) picked: bool,
     pub(crate) displacement_m: f64,
     pub(crate) cycle_time_s: f64,
+    pub(crate) grasp: Option<GraspRecord>,
 }
 
 /// What the cycle carries from one phase to the next.
@@ -67,6 +70,7 @@ impl Sorter<'_> {
             picked: false,
             displacement_m: 0.0,
             cycle_time_s: 0.0,
+            grasp: None,
         }
     }
 
@@ -80,9 +84,10 @@ impl Sorter<'_> {
     ) -> Cycle {
         let (scenario, catalogue) = (model.scenario(), model.catalogue());
         data.touch_phase = None;
+        data.faults.cycles += 1;
         let part = self.part_record(model, data);
-        let mut decision = None;
-        let result = self.run_cycle(model, data, seen, &mut decision);
+        let (mut decision, mut grasp) = (None, None);
+        let result = self.run_cycle(model, data, seen, &mut decision, &mut grasp);
         let placed_bin_id = data.bin_holding(self.current);
         let evidence = CycleEvidence {
             part_type: PartTypeId(data.cell.items.parts()[self.current].instance.type_index),
@@ -106,17 +111,19 @@ impl Sorter<'_> {
             cycle_time_s: self
                 .pick_time_s
                 .map_or(0.0, |t| data.cell.world.time_s() - t),
+            grasp,
         }
     }
 
     /// Steps the cycle's phases in order until the arm is home or one fails; `decision` is filled
-    /// once perception has decided.
+    /// once perception has decided, `chosen` once the pick is planned.
     fn run_cycle(
         &mut self,
         model: &CellModel,
         data: &mut CellData,
         seen: Option<Sighting>,
         decision: &mut Option<DecisionRecord>,
+        chosen: &mut Option<GraspRecord>,
     ) -> Result<(), Failure> {
         let catalogue = model.catalogue();
         let mut state = CycleState::default();
@@ -138,6 +145,16 @@ impl Sorter<'_> {
                     let planned = self.plan(model, data, &state);
                     data.timing.planning_ms += started.elapsed().as_secs_f64() * 1e3;
                     let (pick, place) = planned?;
+                    *chosen = Some(GraspRecord {
+                        clearance_mm: pick.clearance_m * 1e3,
+                        candidates: u32::try_from(pick.candidates).unwrap_or(u32::MAX),
+                    });
+                    if !model.scenario().faults.is_empty()
+                        && let Some(percept) = &state.percept
+                    {
+                        // Kept for checking the motions again after a fault.
+                        data.faults.checker = Some(self.planner.checker_for(percept));
+                    }
                     state.pick = Some(pick);
                     state.place = Some(place);
                 }
@@ -147,6 +164,7 @@ impl Sorter<'_> {
                     };
                     let open = self.planner.open_offset_m(percept);
                     data.gripper.set(open, OPEN_FORCE_N);
+                    data.faults.open_m = open;
                     play_part(model, data, phase, &pick.approach, Phase::Approach, None)?;
                 }
                 Phase::Grasp => {
@@ -295,6 +313,11 @@ fn grasp(
     grip_force_n: f64,
     part_radius_m: f64,
 ) -> Result<(), Failure> {
+    if let Some(fault) = data.faults.plan.grip_fault_at(data.faults.grasps) {
+        data.gripper.inject(&fault);
+    }
+    data.faults.grasps += 1;
+    data.faults.held_radius_m = part_radius_m;
     data.gripper.set(0.0, grip_force_n);
     let stroke_s = data.gripper.target_m() / JAW_SPEED_M_S;
     data.settle(model, stroke_s + GRIP_BUILD_S)?;

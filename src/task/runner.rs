@@ -1,15 +1,16 @@
 //! The cell's trial runner: builds the cell for each trial and runs its task.
 
 use std::path::Path;
-use std::sync::Arc;
+use std::sync::{Arc, OnceLock};
 use std::time::Instant;
 
 use super::cell_data::CellData;
 use super::observer::{CellView, PerceptionFrame, TrialObserver, TrialObserverFactory};
-use super::sorter::Sorter;
+use super::sorter::{Sorter, planner_for};
 use crate::cell::{CellError, CellModel};
 use crate::detect::DetectorModel;
 use crate::outcome::{FailureReason, Perception, TrialRecord, TrialRunner};
+use crate::planning::PickPlanner;
 use crate::scenario::Scenario;
 use crate::station::{CameraPerception, CameraPerceptionError};
 
@@ -30,6 +31,9 @@ pub struct CellTrialRunner {
     model: CellModel,
     camera: Option<Arc<CameraPerception>>,
     observers: Vec<Arc<dyn TrialObserverFactory>>,
+    /// The planner's view of the cell, captured from the first cell built (it is the same for
+    /// every trial).
+    planner: OnceLock<PickPlanner>,
 }
 
 impl CellTrialRunner {
@@ -75,6 +79,7 @@ impl CellTrialRunner {
             model,
             camera,
             observers: Vec::new(),
+            planner: OnceLock::new(),
         })
     }
 
@@ -114,7 +119,8 @@ impl TrialRunner for CellTrialRunner {
         let mut record = match CellData::reset(model, seed) {
             Ok(mut data) => {
                 data.attach(model, observer.take(), index);
-                let sorter = Sorter::new(model, &data, self.camera.as_deref());
+                let planner = self.planner.get_or_init(|| planner_for(model, &data));
+                let sorter = Sorter::new(model, planner.clone(), self.camera.as_deref());
                 let record = if model.scenario().is_stream() {
                     sorter.run_stream(model, &mut data, index)
                 } else {

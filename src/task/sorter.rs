@@ -5,7 +5,7 @@
 use super::cell_data::CellData;
 use crate::cell::CellModel;
 use crate::outcome::Misidentification;
-use crate::planning::{PickPlanner, capture_robot_shapes, scenery_obstacles};
+use crate::planning::PickPlanner;
 use crate::station::CameraPerception;
 
 /// The controller of one trial.
@@ -23,36 +23,25 @@ pub(crate) struct Sorter<'a> {
     pub(crate) misidentified: Option<Misidentification>,
 }
 
+/// The planner's view of the cell as reset: the robot's collision shapes at home and the fixed
+/// scenery as obstacles. Nothing in it depends on the trial's draw, so a runner captures it
+/// once and every trial shares it.
+pub(crate) fn planner_for(model: &CellModel, data: &CellData) -> PickPlanner {
+    PickPlanner::for_cell(model, &data.cell)
+}
+
 impl<'a> Sorter<'a> {
-    /// The controller for the trial in `data`, as reset.
+    /// The controller of a trial of `model`, planning with `planner`.
     pub(crate) fn new(
         model: &CellModel,
-        data: &CellData,
+        planner: PickPlanner,
         camera: Option<&'a CameraPerception>,
     ) -> Self {
-        let scenario = model.scenario();
-        let cell = &data.cell;
-        let arm = model.arm_model().clone();
-        let home = scenario.robot.home_q_rad;
-        let world_from_base = *cell.arm.world_from_base();
-        let planner = PickPlanner {
-            robot_shapes: capture_robot_shapes(&cell.world, &cell.arm, &arm, &home),
-            model: arm,
-            ik: model.ik().clone(),
-            world_from_base,
-            finger_reference_m: cell.finger_reference_m,
-            obstacles: scenery_obstacles(&cell.scenery, &world_from_base.inverse()),
-            belt_top_z: cell.belt_top_z,
-            open_clearance_m: scenario.gripper.open_clearance_m,
-            speed_fraction: scenario.robot.speed_fraction,
-            carry_speed_fraction: scenario.robot.carry_speed_fraction,
-            home_q_rad: home,
-        };
         Self {
             camera,
             planner,
             current: 0,
-            grip_recipe_n: scenario.gripper.grip_force_n,
+            grip_recipe_n: model.scenario().gripper.grip_force_n,
             pick_time_s: None,
             misidentified: None,
         }

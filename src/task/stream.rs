@@ -10,7 +10,8 @@ use super::pick_cycle::Cycle;
 use super::sorter::Sorter;
 use crate::cell::CellModel;
 use crate::outcome::{
-    Failure, FailureReason, Misidentification, Outcome, StreamPartRecord, StreamRecord, TrialRecord,
+    Failure, FailureReason, FaultAction, FaultKind, Misidentification, Outcome, StreamPartRecord,
+    StreamRecord, TrialRecord,
 };
 use crate::scenario::PartTypeId;
 use crate::station::{Sighting, StationItem, TargetRule};
@@ -40,13 +41,8 @@ impl Sorter<'_> {
         data: &mut CellData,
         index: u32,
     ) -> TrialRecord {
-        let cycle = match data.wait_for_part(model) {
-            Ok(stopped_s) => {
-                self.pick_time_s = Some(stopped_s);
-                self.pick_cycle(model, data, None)
-            }
-            Err(failure) => self.unreached(model, data, failure),
-        };
+        let cycle = self.single_part(model, data);
+        let faults = data.take_fault_records(cycle.failure.is_none());
         let (failure, detail) = split(cycle.failure);
         let sim_time_s = data.cell.world.time_s();
         TrialRecord {
@@ -66,7 +62,67 @@ impl Sorter<'_> {
             motion: data.motion,
             timing: data.timing.clone(),
             stream: None,
+            grasp: cycle.grasp,
+            faults,
         }
+    }
+
+    /// The belt run to the photo-eye and the part picked (`Err` when none arrives).
+    fn wait_and_pick(&mut self, model: &CellModel, data: &mut CellData) -> Cycle {
+        match data.wait_for_part(model) {
+            Ok(stopped_s) => {
+                self.pick_time_s = Some(stopped_s);
+                self.pick_cycle(model, data, None)
+            }
+            Err(failure) => self.unreached(model, data, failure),
+        }
+    }
+
+    /// The single part from the belt into its bin, through the faults the controller can
+    /// recover from: a trigger with nothing there is run past, and a part the jaws show
+    /// dropped is looked for and picked again.
+    fn single_part(&mut self, model: &CellModel, data: &mut CellData) -> Cycle {
+        let mut cycle = self.wait_and_pick(model, data);
+        let nothing_seen = cycle
+            .failure
+            .as_ref()
+            .is_some_and(|f| f.reason == FailureReason::NotDetected);
+        // Nothing seen and the beam clear again: the eye's trigger was false.
+        if model.scenario().faults.photo_eye.is_some() && nothing_seen && !data.photo_eye_reports()
+        {
+            data.faults
+                .false_trigger_actions
+                .push(FaultAction::IgnoredFalseTrigger);
+            cycle = self.wait_and_pick(model, data);
+        }
+        let Some((dropped_at_s, phase)) = data.faults.drop_seen.take() else {
+            return cycle;
+        };
+        let mut actions = vec![FaultAction::SawDrop];
+        let detail = format!("the grip weakened and the part fell during {phase}");
+        match self.look_again_after_drop(model, data) {
+            Ok(true) => {
+                actions.extend([FaultAction::FoundOnBelt, FaultAction::Repicked]);
+                cycle = self.pick_cycle(model, data, None);
+            }
+            Ok(false) => {
+                actions.push(FaultAction::CountedLost);
+                let rest = data.part_resting_place(model, self.current);
+                if let Some(failure) = cycle.failure.as_mut() {
+                    failure.detail.push_str(&format!(
+                        "; not seen at the pick station again: counted lost (truth: {rest})"
+                    ));
+                }
+            }
+            Err(failure) => {
+                actions.push(FaultAction::CountedLost);
+                cycle.failure = Some(failure);
+            }
+        }
+        let sorted = cycle.failure.is_none();
+        data.faults
+            .record(FaultKind::Gripper, dropped_at_s, detail, actions, sorted);
+        cycle
     }
 
     /// Points along the photo-eye's beam across the belt, world.
@@ -242,6 +298,7 @@ impl Sorter<'_> {
             ),
             (None, None) => (None, None),
         };
+        let faults = data.take_fault_records(failure.is_none());
         let sim_time_s = data.cell.world.time_s();
         TrialRecord {
             trial: index,
@@ -267,6 +324,8 @@ impl Sorter<'_> {
                 parts,
                 misidentified: self.misidentified.take(),
             }),
+            grasp: None,
+            faults,
         }
     }
 }
@@ -292,5 +351,6 @@ fn stream_part(index: u32, cycle: Cycle) -> StreamPartRecord {
         decision: cycle.decision,
         placed_bin: cycle.placed_bin,
         cycle_time_s: cycle.cycle_time_s,
+        grasp: cycle.grasp,
     }
 }

@@ -8,7 +8,7 @@ use twincell::perception::roundness::DEFAULT_MAX_UPR;
 
 use super::{CircleOut, MeasureArgs};
 use crate::cli::BadInput;
-use crate::cli::camera_json::CameraJson;
+use twincell::camera::CameraJson;
 
 /// A circle in millimetres and its verdict.
 #[derive(Debug, Serialize)]

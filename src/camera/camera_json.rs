@@ -1,9 +1,10 @@
 //! The camera object of `twincell render`'s `shot.json`, written by `render` and read back by
-//! `measure --calibration`: one type for both directions, so the two cannot drift apart.
+//! `measure --calibration` and the Python package: one type for every direction, so they cannot
+//! drift apart.
 
+use super::CameraCalibration;
 use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion};
 use serde::{Deserialize, Serialize};
-use twincell::camera::CameraCalibration;
 
 /// A pinhole camera as JSON: intrinsics in pixels and its pose in the world.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
