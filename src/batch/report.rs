@@ -7,6 +7,7 @@ use serde::{Deserialize, Serialize};
 use super::batch_listing::BatchListing;
 use super::{Outcome, Perception, Shard, TrialRecord, TrialTiming};
 use crate::outcome::{FaultKind, FaultTally};
+use crate::scenario::UNIDENTIFIED;
 
 /// z for a two-sided 95 % interval.
 pub const Z95: f64 = 1.959964;
@@ -109,8 +110,12 @@ pub struct Sorting {
     pub count: u32,
     /// True accept/reject vs decided accept/reject.
     pub accept_reject: AcceptConfusion,
-    /// True part type -> detected type -> count.
+    /// True part type -> detected type -> count (`unidentified` for a part no type, or
+    /// several, fit by measurement).
     pub part_type: BTreeMap<String, BTreeMap<String, u32>>,
+    /// Parts whose type no catalogue type, or more than one, fit by measurement (rejected).
+    #[serde(default)]
+    pub unidentified: u32,
     /// Parts whose true roundness lies outside the band around the tolerance.
     pub clear_cut: u32,
     /// Of those, the ones judged wrong (accepted out of tolerance or rejected within it).
@@ -416,6 +421,7 @@ impl BatchReport {
                 band.accepted += u32::from(decision.accept);
                 band.rejected += u32::from(!decision.accept);
             }
+            sorting.unidentified += u32::from(decision.detected_type == UNIDENTIFIED);
             *sorting
                 .part_type
                 .entry(part.part_type.clone())

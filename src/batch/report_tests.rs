@@ -93,6 +93,35 @@ fn report_counts_from_records() {
 }
 
 #[test]
+fn unidentified_parts_are_counted_and_shown_apart_from_wrong_types() {
+    let meta = ReportMeta {
+        scenario: "s".into(),
+        seed: 1,
+        perception: Perception::Camera,
+        scenario_trials: 3,
+        shard: None,
+        interrupted: false,
+        min_success: None,
+    };
+    let mut records: Vec<_> = (0..3).map(|i| record(i, i == 0)).collect();
+    if let Some(d) = records[2].decision.as_mut() {
+        d.detected_type = crate::scenario::UNIDENTIFIED.into();
+        d.note = Some("no type fits the end face".into());
+    }
+    let report = BatchReport::from_records(&meta, &records);
+    assert_eq!(report.sorting.unidentified, 1);
+    assert_eq!(report.sorting.part_type["a"]["unidentified"], 1);
+    assert_eq!(report.listing.identified["a"]["unidentified"], 1);
+    let table = report.summary_table();
+    assert!(
+        table.contains("1 parts of the wrong detected type, 1 unidentified"),
+        "{table}"
+    );
+    let json = serde_json::to_value(&report).unwrap_or_default();
+    assert_eq!(json["sorting"]["unidentified"], 1);
+}
+
+#[test]
 fn faults_are_tallied_per_kind_and_absent_from_a_report_without_them() {
     use crate::outcome::{FaultAction, FaultKind, FaultRecord};
     let meta = ReportMeta {

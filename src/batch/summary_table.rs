@@ -3,6 +3,7 @@
 use std::fmt::Write as _;
 
 use super::{BatchReport, Perception};
+use crate::scenario::UNIDENTIFIED;
 
 impl BatchReport {
     /// A fixed-width plain-text summary for the end of a run.
@@ -100,14 +101,18 @@ impl BatchReport {
             .flat_map(|(truth, detected)| {
                 detected
                     .iter()
-                    .filter(move |(name, _)| *name != truth)
+                    .filter(move |(name, _)| *name != truth && *name != UNIDENTIFIED)
                     .map(|(_, n)| *n)
             })
             .sum();
         let _ = writeln!(
             out,
-            "  {:<20}{} of {} clear-cut parts misjudged; {} parts of the wrong detected type",
-            "", self.sorting.clear_cut_misjudged, self.sorting.clear_cut, type_errors
+            "  {:<20}{} of {} clear-cut parts misjudged; {} parts of the wrong detected type, {} unidentified",
+            "",
+            self.sorting.clear_cut_misjudged,
+            self.sorting.clear_cut,
+            type_errors,
+            self.sorting.unidentified
         );
         let band = &self.sorting.in_band;
         let _ = writeln!(

@@ -415,7 +415,6 @@ impl BoreDetector {
         {
             return None;
         }
-        let outer_ratio = rim.outer_ratio.unwrap_or(f64::NAN);
 
         let mut bridges = Vec::new();
         let mut coverage = 1.0;
@@ -460,7 +459,11 @@ impl BoreDetector {
             bridge_points_px: bridges,
             coverage,
             contrast_ratio,
-            outer_ratio,
+            // The outer edge's radius over the fitted bore's, not the coarse outline's (which
+            // sits a pixel or so off the edge: 5 % of an 8 mm bore).
+            outer_ratio: rim
+                .outer_radius_px
+                .map_or(f64::NAN, |outer| outer / fit.radius),
         })
     }
 

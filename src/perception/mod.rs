@@ -26,6 +26,7 @@ pub mod contours;
 pub mod edges;
 pub mod error;
 pub mod filters;
+pub mod identify;
 pub mod integer_edges;
 pub mod max_threshold;
 pub mod ray_samples;

@@ -68,8 +68,9 @@ pub struct RimScan {
     /// Median width of the rim over the rays where it ended inside the image (`None` when it
     /// ended on none: cut by the border or covering the frame).
     pub wall_px: Option<f64>,
-    /// Median ratio of the rim's outer radius to the bore radius, over the same rays.
-    pub outer_ratio: Option<f64>,
+    /// Median distance from the centre to where the rim ends, over the same rays, with the
+    /// end interpolated between the walk's samples: the outer edge's radius.
+    pub outer_radius_px: Option<f64>,
 }
 
 /// Walks `params.rays` rays from `centre`, each from `radius_at(unit)` (the coarse bore edge in
@@ -120,7 +121,7 @@ pub fn scan_rim(
     let mut flat = 0usize;
     let mut walked = 0usize;
     let mut walls = Vec::with_capacity(units.len());
-    let mut ratios = Vec::with_capacity(units.len());
+    let mut outer_radii = Vec::with_capacity(units.len());
     for &[c, s] in &units {
         let r = radius_at([c, s]);
         let limit = params.max_outer_ratio * r + 2.0;
@@ -128,6 +129,7 @@ pub fn scan_rim(
         let mut near = f64::NEG_INFINITY;
         let mut highest = f64::NEG_INFINITY;
         let mut ended = None;
+        let mut previous = f64::NAN;
         // The walk's positions a chunk at a time (to its limit or the image border), sampled
         // together, then read in order: a chunk reads at most a few samples past the end.
         let [mut xs, mut ys, mut ts, mut levels] = [[0.0; WALK_CHUNK]; 4];
@@ -149,8 +151,16 @@ pub fn scan_rim(
             for (&level, &t) in levels.iter().zip(&ts).take(n) {
                 if level < end_level {
                     ended = Some(t);
+                    // Where the level crossed the end level between the last two samples.
+                    let crossing = if previous > level {
+                        t - ((end_level - level) / (previous - level)).clamp(0.0, 1.0)
+                    } else {
+                        t
+                    };
+                    outer_radii.push(crossing);
                     break 'walk;
                 }
+                previous = level;
                 if t < r + params.start_px + 2.0 {
                     near = near.max(level);
                 }
@@ -169,7 +179,6 @@ pub fn scan_rim(
         }
         if let Some(end) = ended {
             walls.push(end - r);
-            ratios.push(end / r);
         }
     }
     if walked == 0 {
@@ -182,7 +191,7 @@ pub fn scan_rim(
         rim_spread,
         flat_share: flat as f64 / walked as f64,
         wall_px: median(&mut walls),
-        outer_ratio: median(&mut ratios),
+        outer_radius_px: median(&mut outer_radii),
     })
 }
 

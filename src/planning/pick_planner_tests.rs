@@ -86,6 +86,7 @@ fn percept(xy: [f64; 2], obstacles: Vec<PerceivedObstacle>) -> Percept {
         roundness_mm: Some(0.2),
         bore_diameter_mm: Some(28.0),
         inconsistency: None,
+        unidentified: None,
         obstacles,
     }
 }

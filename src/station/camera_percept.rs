@@ -14,6 +14,7 @@ use image::{GrayImage, RgbImage};
 use nalgebra::Point3;
 
 use super::bottle_fit::{BottleFitter, BottlePose};
+use super::type_reader::TypeReader;
 use crate::camera::CameraCalibration;
 use crate::detect::{Detection, Detector, DetectorModel};
 use crate::perception::calibration::{MeasureOnPlane, PlaneBore};
@@ -21,7 +22,7 @@ use crate::perception::roundness::DEFAULT_MAX_UPR;
 use crate::perception::{Bore, BoreDetector, BoreDetectorParams};
 use crate::render::{CameraRig, Renderer, RendererOptions, Scene, SensorWindow, Shot};
 use crate::rng::SimRng;
-use crate::scenario::Scenario;
+use crate::scenario::{Scenario, TypeBy};
 
 /// Share of a part box's side added on every side before the metrology looks inside it.
 const BOX_MARGIN: f64 = 0.15;
@@ -71,6 +72,9 @@ pub struct PartSighting {
     pub bore: Option<(Bore, PlaneBore)>,
     /// Set when the measurement contradicts the detected type (the sorter rejects such a part).
     pub inconsistency: Option<String>,
+    /// Set when the type was to be named by measurement and no type, or several, fit (the
+    /// sorter rejects such a part); `type_index` is then only the geometry it is handled with.
+    pub unidentified: Option<String>,
 }
 
 /// What the camera saw of one bottle: every pose that explains its box about equally well.
@@ -135,8 +139,10 @@ pub struct CameraPerception {
     renderers: Mutex<Vec<Renderer>>,
     detectors: Mutex<Vec<Detector>>,
     bore_detector: BoreDetector,
-    /// The part types' detector classes, by scenario type index.
+    /// The scenario type each detector class names (by measurement: the one of that name, or
+    /// the bulkiest, until the target is measured).
     type_of_class: Vec<Option<usize>>,
+    type_reader: TypeReader,
     bottle_class: Option<usize>,
     bottle_fitter: BottleFitter,
 }
@@ -180,8 +186,26 @@ impl CameraPerception {
         let detector = Detector::open(&model)?;
         let classes = detector.class_names().to_vec();
         let class_index = |name: &str| classes.iter().position(|c| c == name);
+        let type_reader = TypeReader::new(scenario);
         let mut type_of_class = vec![None; classes.len()];
-        for (type_index, part_type) in scenario.part_types.iter().enumerate() {
+        if type_reader.type_by() == TypeBy::Measurement {
+            // The detector only has to find a tube: any of its classes but the bottle. Parts
+            // other than the target are not measured: as obstacles they take the type the class
+            // names where it is one of the scenario's, else the bulkiest (the larger obstacle).
+            for (class, name) in classes.iter().enumerate() {
+                if name != "bottle" {
+                    let named = scenario.part_types.iter().position(|t| &t.name == name);
+                    type_of_class[class] = Some(named.unwrap_or(type_reader.bulkiest()));
+                }
+            }
+        }
+        let by_detector = type_reader.type_by() == TypeBy::Detector;
+        for (type_index, part_type) in scenario
+            .part_types
+            .iter()
+            .enumerate()
+            .filter(|_| by_detector)
+        {
             let Some(class) = class_index(&part_type.name) else {
                 return Err(CameraPerceptionError::UnknownType {
                     name: part_type.name.clone(),
@@ -203,6 +227,7 @@ impl CameraPerception {
                 BoreDetectorParams::default().at_scale(f64::from(scenario.camera.roi_scale)),
             ),
             type_of_class,
+            type_reader,
             bottle_class: class_index("bottle"),
             bottle_fitter,
         })
@@ -357,8 +382,6 @@ impl CameraPerception {
         let mut other_parts = Vec::new();
         for (k, (index, type_index, centre_px)) in parts.into_iter().enumerate() {
             let is_target = target.is_some_and(|(_, t)| t == k);
-            let face_m = belt_top_z_m + scenario.part_types[type_index].height_mm / 1000.0;
-            let calibration = self.rig.calibration.with_end_face_height(face_m);
             // Only the target's bore is measured, in its area of interest; other parts are
             // obstacles.
             let box_px = detections[index].box_px.map(f64::from);
@@ -366,21 +389,35 @@ impl CameraPerception {
             let window = is_target
                 .then(|| part_window(&box_px, frame_px, self.roi_scale))
                 .flatten();
-            let bore = match window {
+            let found = match window {
                 Some(window) => {
                     let rendered = Instant::now();
                     let window_image = shot.render_window(renderer, &gpu, &window)?;
                     window_render_ms += rendered.elapsed().as_secs_f64() * 1e3;
-                    measure_in_window(
-                        &self.bore_detector,
-                        &image::imageops::grayscale(&window_image),
-                        &window,
-                        &box_px,
-                        &calibration,
-                    )
+                    let gray = image::imageops::grayscale(&window_image);
+                    find_in_window(&self.bore_detector, &gray, &window, &box_px)
+                        .map(|bore| (bore, window))
                 }
                 None => None,
             };
+            let (type_index, unidentified) = match self.type_reader.type_by() {
+                TypeBy::Detector => (type_index, None),
+                TypeBy::Measurement if is_target => {
+                    let decision = match &found {
+                        Some((bore, window)) => self.type_reader.decide(
+                            bore,
+                            &window.calibration(&self.rig.calibration),
+                            belt_top_z_m,
+                        ),
+                        None => self.type_reader.unmeasured(),
+                    };
+                    (decision.type_index, decision.unidentified)
+                }
+                TypeBy::Measurement => (type_index, None),
+            };
+            let face_m = belt_top_z_m + scenario.part_types[type_index].height_mm / 1000.0;
+            let calibration = self.rig.calibration.with_end_face_height(face_m);
+            let bore = found.and_then(|(bore, window)| measure_found(bore, &window, &calibration));
             let centre_in_world = match &bore {
                 Some((_, plane)) => plane.centre_in_world,
                 None => match calibration.pixel_to_plane(centre_px[0], centre_px[1]) {
@@ -389,22 +426,27 @@ impl CameraPerception {
                 },
             };
             let nominal_m = scenario.part_types[type_index].bore_diameter_mm / 1000.0;
-            let inconsistency = bore.as_ref().and_then(|(_, plane)| {
-                ((plane.diameter_m - nominal_m).abs() > TYPE_DIAMETER_TOLERANCE_M).then(|| {
-                    format!(
-                        "measured bore {:.2} mm contradicts the detected {} ({:.0} mm)",
-                        plane.diameter_m * 1e3,
-                        scenario.part_types[type_index].name,
-                        nominal_m * 1e3
-                    )
-                })
-            });
+            let by_detector = self.type_reader.type_by() == TypeBy::Detector;
+            let inconsistency = bore
+                .as_ref()
+                .filter(|_| by_detector)
+                .and_then(|(_, plane)| {
+                    ((plane.diameter_m - nominal_m).abs() > TYPE_DIAMETER_TOLERANCE_M).then(|| {
+                        format!(
+                            "measured bore {:.2} mm contradicts the detected {} ({:.0} mm)",
+                            plane.diameter_m * 1e3,
+                            scenario.part_types[type_index].name,
+                            nominal_m * 1e3
+                        )
+                    })
+                });
             let sighting = PartSighting {
                 detection: index,
                 type_index,
                 centre_in_world,
                 bore,
                 inconsistency,
+                unidentified,
             };
             if is_target {
                 target_sighting = Some(sighting);
@@ -451,6 +493,18 @@ pub fn measure_in_window(
     box_px: &[f64; 4],
     calibration: &CameraCalibration,
 ) -> Option<(Bore, PlaneBore)> {
+    let bore = find_in_window(bore_detector, gray, window, box_px)?;
+    measure_found(bore, window, calibration)
+}
+
+/// The bore in a part's area of interest (`gray`, read through `window`) nearest the centre of
+/// the part's box (frame pixels), in the window's pixels.
+pub fn find_in_window(
+    bore_detector: &BoreDetector,
+    gray: &GrayImage,
+    window: &SensorWindow,
+    box_px: &[f64; 4],
+) -> Option<Bore> {
     let [x0, y0, x1, y1] = *box_px;
     let centre = [(x0 + x1) / 2.0, (y0 + y1) / 2.0];
     let in_box = |p: [f64; 2]| (x0..=x1).contains(&p[0]) && (y0..=y1).contains(&p[1]);
@@ -458,12 +512,21 @@ pub fn measure_in_window(
         let [x, y] = window.to_frame(b.centre_px);
         (x - centre[0]).hypot(y - centre[1])
     };
-    let bore = bore_detector
+    bore_detector
         .detect(gray)
         .ok()?
         .into_iter()
         .filter(|b| in_box(window.to_frame(b.centre_px)))
-        .min_by(|a, b| distance(a).total_cmp(&distance(b)))?;
+        .min_by(|a, b| distance(a).total_cmp(&distance(b)))
+}
+
+/// Measures `bore`, found in the area of interest `window`, on the end-face plane of
+/// `calibration` (the frame's camera); the bore comes back in frame pixels.
+pub fn measure_found(
+    bore: Bore,
+    window: &SensorWindow,
+    calibration: &CameraCalibration,
+) -> Option<(Bore, PlaneBore)> {
     let plane = window
         .calibration(calibration)
         .measure_on_plane(&bore, DEFAULT_MAX_UPR)

@@ -9,12 +9,14 @@ pub mod camera_percept;
 mod frame_check;
 mod percept;
 mod sighting_percept;
+pub mod type_reader;
 
 pub use bottle_fit::{BottleFitter, BottlePose};
 pub use camera_percept::{
     BottleSighting, CameraPerception, CameraPerceptionError, PartSighting, Sighting, StationItem,
-    TargetRule, measure_in_window, part_window,
+    TargetRule, find_in_window, measure_found, measure_in_window, part_window,
 };
 pub use frame_check::{BLANK_LEVEL, black_frame, frame_is_blank};
 pub use percept::{PerceivedObstacle, Percept, bottle_obstacle, part_obstacle};
 pub use sighting_percept::{NEIGHBOURHOOD_M, StationModel};
+pub use type_reader::{TypeDecision, TypeReader};

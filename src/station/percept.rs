@@ -23,6 +23,9 @@ pub struct Percept {
     pub bore_diameter_mm: Option<f64>,
     /// Why the measurement contradicts the detection, if it does (the part is then rejected).
     pub inconsistency: Option<String>,
+    /// Why the part's type could not be named by measurement, if it could not (the part is then
+    /// rejected; `part_type` is only the geometry it is handled with).
+    pub unidentified: Option<String>,
     /// Other things on the belt near the part.
     pub obstacles: Vec<PerceivedObstacle>,
 }

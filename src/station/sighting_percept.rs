@@ -70,6 +70,7 @@ impl Sighting {
             roundness_mm,
             bore_diameter_mm,
             inconsistency: target.inconsistency.clone(),
+            unidentified: target.unidentified.clone(),
             obstacles,
         })
     }

@@ -137,6 +137,7 @@ fn perceive_oracle(model: &CellModel, data: &CellData, current: usize) -> Result
         roundness_mm: Some(part.bore.roundness_m() * 1000.0),
         bore_diameter_mm: Some(part.bore.mean_diameter_m() * 1000.0),
         inconsistency: None,
+        unidentified: None,
         obstacles,
     })
 }

@@ -13,7 +13,7 @@ use crate::outcome::{
     DecisionRecord, Failure, FailureReason, GraspRecord, PartRecord, Phase, fail,
 };
 use crate::planning::{JointTrajectory, Payload, PickPlan, PlacePlan};
-use crate::scenario::{BinId, PartTypeId};
+use crate::scenario::{BinId, PartTypeId, UNIDENTIFIED};
 use crate::sim::JAW_SPEED_M_S;
 use crate::station::{Percept, Sighting};
 
@@ -282,17 +282,25 @@ fn payload(model: &CellModel, percept: &Percept, grip_force_n: f64) -> Payload {
 fn decide(model: &CellModel, percept: &Percept) -> (DecisionRecord, Option<BinId>) {
     let catalogue = model.catalogue();
     let accept = percept.inconsistency.is_none()
+        && percept.unidentified.is_none()
         && percept
             .roundness_mm
             .is_some_and(|r| r <= model.scenario().roundness_tolerance_mm);
     let bin = catalogue.bin_for(percept.part_type, accept);
+    let detected_type = match percept.unidentified {
+        Some(_) => UNIDENTIFIED.to_owned(),
+        None => catalogue.part(percept.part_type).name.clone(),
+    };
     let decision = DecisionRecord {
-        detected_type: catalogue.part(percept.part_type).name.clone(),
+        detected_type,
         measured_roundness_mm: percept.roundness_mm,
         measured_bore_diameter_mm: percept.bore_diameter_mm,
         accept,
         bin: judge::bin_name(catalogue, bin),
-        note: percept.inconsistency.clone(),
+        note: percept
+            .unidentified
+            .clone()
+            .or_else(|| percept.inconsistency.clone()),
     };
     (decision, bin)
 }
