@@ -101,6 +101,7 @@ fn percepts(clutter: &Scenario, belt_top_z: f64, count: u64) -> Vec<Percept> {
                 roundness_mm: None,
                 bore_diameter_mm: None,
                 inconsistency: None,
+                unidentified: None,
                 obstacles,
             }
         })

@@ -173,6 +173,7 @@ fn percept_of(value: &Bound<'_, PyAny>, model: &CellModel, belt_top_z: f64) -> P
         roundness_mm: None,
         bore_diameter_mm: None,
         inconsistency: None,
+        unidentified: None,
         obstacles,
     })
 }
