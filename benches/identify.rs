@@ -7,32 +7,14 @@
 use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use twincell::perception::synthetic::{BoreShape, Illumination, Noise, Scene, Tube};
+use twincell::perception::synthetic::Scene;
 use twincell::perception::{Bore, BoreDetector, BoreDetectorParams};
 use twincell::render::CameraRig;
 use twincell::scenario::Scenario;
 use twincell::station::TypeReader;
 
 fn bore() -> Bore {
-    let image = Scene {
-        width_px: 260,
-        height_px: 260,
-        belt_level: 40.0,
-        tubes: vec![Tube {
-            centre_px: [130.3, 129.6],
-            bore: BoreShape::Circle { radius_px: 55.0 },
-            outer_radius_px: 93.0,
-            rim_level: 200.0,
-            bore_level: 20.0,
-        }],
-        bottles: vec![],
-        stains: vec![],
-        rim_stains: vec![],
-        illumination: Illumination::EVEN,
-        noise: Noise::NONE,
-        noise_seed: 0,
-    }
-    .render();
+    let image = Scene::one_tube(260, [130.3, 129.6], 55.0, 93.0).render();
     let detector = BoreDetector::new(BoreDetectorParams::default().at_scale(2.0));
     let bores = detector.detect(&image).expect("detects");
     bores.into_iter().next().expect("one bore")

@@ -16,7 +16,7 @@ use criterion::{BenchmarkGroup, Criterion, criterion_group, criterion_main};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion};
 use twincell::cell::{Cell, CellModel, PartSpot, place_bottles};
 use twincell::kinematics::JointVector;
-use twincell::planning::{GraspSearch, PickPlanner, capture_robot_shapes, scenery_obstacles};
+use twincell::planning::{GraspSearch, PickPlanner};
 use twincell::rng::SimRng;
 use twincell::scenario::{PartTypeId, Scenario};
 use twincell::station::{Percept, bottle_obstacle};
@@ -41,22 +41,7 @@ fn planner(scenario: &Scenario) -> PickPlanner {
     let Ok(cell) = Cell::build(&model, &mut SimRng::new(1)) else {
         panic!("the paper's cell builds");
     };
-    let arm = model.arm_model().clone();
-    let home = scenario.robot.home_q_rad;
-    let world_from_base = *cell.arm.world_from_base();
-    PickPlanner {
-        robot_shapes: capture_robot_shapes(&cell.world, &cell.arm, &arm, &home),
-        model: arm,
-        ik: model.ik().clone(),
-        world_from_base,
-        finger_reference_m: cell.finger_reference_m,
-        obstacles: scenery_obstacles(&cell.scenery, &world_from_base.inverse()),
-        belt_top_z: cell.belt_top_z,
-        open_clearance_m: scenario.gripper.open_clearance_m,
-        speed_fraction: scenario.robot.speed_fraction,
-        carry_speed_fraction: scenario.robot.carry_speed_fraction,
-        home_q_rad: home,
-    }
+    PickPlanner::for_cell(&model, &cell)
 }
 
 /// `count` percepts of a 20 mm tube at the pick station with bottles placed as `clutter`

@@ -144,7 +144,7 @@ mod tests {
     /// bores from 14 px: the ratio is taken to the fitted bore, not the coarse outline.
     #[test]
     fn the_rim_walk_reads_the_outer_edge_over_the_walls_of_the_family() {
-        use crate::perception::synthetic::{BoreShape, Illumination, Noise, Scene, Tube};
+        use crate::perception::synthetic::Scene;
         use crate::perception::{BoreDetector, BoreDetectorParams};
         let detector = BoreDetector::new(BoreDetectorParams::default());
         let mut rng = crate::rng::SimRng::new(24);
@@ -155,25 +155,7 @@ mod tests {
             let outer = r * ratio;
             let side = (2.0 * outer + 40.0).ceil() as u32;
             let c = f64::from(side) / 2.0 + rng.range(-0.5, 0.5);
-            let image = Scene {
-                width_px: side,
-                height_px: side,
-                belt_level: 40.0,
-                tubes: vec![Tube {
-                    centre_px: [c, c],
-                    bore: BoreShape::Circle { radius_px: r },
-                    outer_radius_px: outer,
-                    rim_level: 200.0,
-                    bore_level: 20.0,
-                }],
-                bottles: vec![],
-                stains: vec![],
-                rim_stains: vec![],
-                illumination: Illumination::EVEN,
-                noise: Noise::NONE,
-                noise_seed: 0,
-            }
-            .render();
+            let image = Scene::one_tube(side, [c, c], r, outer).render();
             let bores = detector.detect(&image).unwrap_or_default();
             let [bore] = bores.as_slice() else {
                 panic!("r {r:.1} ratio {ratio:.2}: {} bores", bores.len());

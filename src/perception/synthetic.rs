@@ -250,6 +250,36 @@ const SUPERSAMPLE: usize = 8;
 const EDGE_BAND_PX: f64 = 3.0;
 
 impl Scene {
+    /// One round tube on an even, noiseless `side` x `side` frame: its bore of radius
+    /// `bore_radius_px` centred at `centre_px`, its rim out to `outer_radius_px`.
+    pub fn one_tube(
+        side: u32,
+        centre_px: [f64; 2],
+        bore_radius_px: f64,
+        outer_radius_px: f64,
+    ) -> Self {
+        Self {
+            width_px: side,
+            height_px: side,
+            belt_level: 40.0,
+            tubes: vec![Tube {
+                centre_px,
+                bore: BoreShape::Circle {
+                    radius_px: bore_radius_px,
+                },
+                outer_radius_px,
+                rim_level: 200.0,
+                bore_level: 20.0,
+            }],
+            bottles: vec![],
+            stains: vec![],
+            rim_stains: vec![],
+            illumination: Illumination::EVEN,
+            noise: Noise::NONE,
+            noise_seed: 0,
+        }
+    }
+
     /// The truth of every bore in the scene.
     pub fn truth(&self) -> Vec<TruthCircle> {
         self.tubes
@@ -460,25 +490,7 @@ fn bottle_reflectance(bottle: &Bottle, x: f64, y: f64) -> Option<f64> {
 /// A fixture for the ray and edge tests.
 #[cfg(test)]
 pub(crate) fn disc_scene(cx: f64, cy: f64, r: f64) -> image::GrayImage {
-    Scene {
-        width_px: 160,
-        height_px: 160,
-        belt_level: 40.0,
-        tubes: vec![Tube {
-            centre_px: [cx, cy],
-            bore: BoreShape::Circle { radius_px: r },
-            outer_radius_px: r + 20.0,
-            rim_level: 200.0,
-            bore_level: 20.0,
-        }],
-        bottles: vec![],
-        stains: vec![],
-        rim_stains: vec![],
-        illumination: Illumination::EVEN,
-        noise: Noise::NONE,
-        noise_seed: 0,
-    }
-    .render()
+    Scene::one_tube(160, [cx, cy], r, r + 20.0).render()
 }
 
 #[cfg(test)]
