@@ -40,6 +40,9 @@ enum Command {
     Dataset(cli::render::DatasetArgs),
     /// Find parts and bottles in images with the shipped detector network.
     Detect(cli::detect::DetectArgs),
+    /// Estimate the metrology's bias and expanded uncertainty for a scenario's camera and
+    /// write the band `run` uses.
+    Calibrate(cli::calibrate::CalibrateArgs),
 }
 
 fn main() -> ExitCode {
@@ -64,6 +67,7 @@ fn main() -> ExitCode {
         Command::Render(args) => cli::render::run_render(&args),
         Command::Dataset(args) => cli::render::run_dataset(&args),
         Command::Detect(args) => cli::detect::run(&args),
+        Command::Calibrate(args) => cli::calibrate::run(&args),
     };
     match result {
         Ok(code) => code,

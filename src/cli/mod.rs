@@ -5,6 +5,7 @@ use std::process::ExitCode;
 
 pub mod batch_options;
 pub mod bench;
+pub mod calibrate;
 pub mod demo;
 pub mod detect;
 pub mod kinematics;

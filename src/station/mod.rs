@@ -7,6 +7,7 @@
 pub mod bottle_fit;
 pub mod camera_percept;
 mod frame_check;
+pub mod metrology_study;
 mod percept;
 mod sighting_percept;
 pub mod type_reader;
@@ -17,6 +18,7 @@ pub use camera_percept::{
     TargetRule, find_in_window, measure_found, measure_in_window, part_window,
 };
 pub use frame_check::{BLANK_LEVEL, black_frame, frame_is_blank};
+pub use metrology_study::{ErrorSummary, KnownPart, MetrologyStudy, ShotErrors, StudySummary};
 pub use percept::{PerceivedObstacle, Percept, bottle_obstacle, part_obstacle};
 pub use sighting_percept::{NEIGHBOURHOOD_M, StationModel};
 pub use type_reader::{TypeDecision, TypeReader};
