@@ -62,6 +62,17 @@ fn a_small_study_gives_finite_bias_and_uncertainty_on_any_jobs() {
 }
 
 #[test]
+fn the_overhead_camera_reproduces_the_shipped_band_within_a_fifth() {
+    let paper = scenario_path("paper_50.toml");
+    let report = study(path_str(&paper), 200, 2);
+    let shipped = twincell::scenario::DEFAULT_ROUNDNESS_UNCERTAINTY_MM;
+    let u = u_of(&report, "roundness");
+    eprintln!("overhead camera, 200 shots: U {u:.4} mm against the shipped {shipped} mm");
+    assert!((u - shipped).abs() <= 0.2 * shipped, "{report}");
+    assert_eq!(report["not_measured"].as_u64(), Some(0), "{report}");
+}
+
+#[test]
 fn a_coarser_or_noisier_camera_gets_a_wider_band() {
     let dir = out_dir("calibrate", "cameras");
     let mut rng = SimRng::new(24);

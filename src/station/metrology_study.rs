@@ -100,7 +100,7 @@ impl MetrologyStudy {
             return Ok(ShotErrors::default());
         };
         let outer = (bore.outer_ratio.is_finite() && bore.outer_ratio > 1.0)
-            .then(|| bore.outer_ratio * plane.diameter_m - part.outer_diameter_m);
+            .then_some(bore.outer_ratio * plane.diameter_m - part.outer_diameter_m);
         Ok(ShotErrors {
             roundness_m: Some(plane.roundness_m - part.roundness_m),
             bore_diameter_m: Some(plane.diameter_m - part.bore_diameter_m),
