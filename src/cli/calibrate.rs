@@ -332,6 +332,15 @@ fn write_band(
         .with_context(|| format!("cannot resolve {}", scenario_path.display()))?;
     let folder = std::fs::canonicalize(&folder)
         .with_context(|| format!("--out: cannot resolve {}", folder.display()))?;
+    if let Some(name) = out.file_name()
+        && folder.join(name) == base
+    {
+        return Err(BadInput(format!(
+            "--out: {} is the studied scenario; write the band beside it",
+            out.display()
+        ))
+        .into());
+    }
     let extends = relative_to(&base, &folder);
     let s = &report.summary;
     let line = |name: &str, row: Option<ErrorSummary>| match row {
