@@ -23,10 +23,10 @@ models="$(realpath --relative-to="$here" "$models")"
 py="$venv/bin/python"
 export OMP_NUM_THREADS=1 OMP_WAIT_POLICY=passive
 cd "$here"
-nice -n 10 "$py" train.py --data "$data/train_731" "$data/train_7311_harsh" \
-    "$data/train_b_7321" "$data/train_b_7322_harsh" \
-    --out "$models/detector.pt" --epochs 12 --batch 16 --lr 3e-3 --input 320 256 --seed 6 \
-    --threads 1 --eval-every 4
+nice -n 10 "$py" train.py --data "$data/train_f_7401" "$data/train_f_7402" \
+    "$data/train_f_7403_harsh" "$data/train_f_7404_harsh" \
+    --out "$models/detector.pt" --epochs 10 --batch 16 --lr 3e-3 --input 320 256 --seed 6 \
+    --threads 1 --eval-every 5
 "$py" export.py --weights "$models/detector.pt" --out "$models/detector.onnx"
-"$py" evaluate.py --model "$models/detector.onnx" --data "$data/heldout_9001" "$data/heldout_9002_harsh" \
-    "$data/heldout_b_9011" "$data/heldout_b_9012_harsh"
+"$py" evaluate.py --model "$models/detector.onnx" --data "$data/heldout_f_9101" \
+    "$data/heldout_f_9102_harsh" "$data/heldout_f_9111" "$data/heldout_f_9112_harsh"

@@ -16,7 +16,7 @@ use nalgebra::Point3;
 use super::bottle_fit::{BottleFitter, BottlePose};
 use super::type_reader::TypeReader;
 use crate::camera::CameraCalibration;
-use crate::detect::{Detection, Detector, DetectorModel};
+use crate::detect::{Detection, Detector, DetectorModel, FOREIGN_CLASSES, is_foreign_class};
 use crate::perception::calibration::{MeasureOnPlane, PlaneBore};
 use crate::perception::roundness::DEFAULT_MAX_UPR;
 use crate::perception::{Bore, BoreDetector, BoreDetectorParams};
@@ -46,7 +46,9 @@ pub enum CameraPerceptionError {
     Camera(String),
     /// A scenario part type that the detector was not trained on.
     #[error(
-        "part_types: type {name:?} is not a class of the detector model {model} (classes: {classes})"
+        "perception.type_by: \"detector\" needs a model whose classes name the scenario's types, \
+         and type {name:?} is not a class of the detector model {model} (classes: {classes}); \
+         name the type by measurement (type_by = \"measurement\", the default)"
     )]
     UnknownType {
         /// The scenario's type name.
@@ -189,11 +191,12 @@ impl CameraPerception {
         let type_reader = TypeReader::new(scenario);
         let mut type_of_class = vec![None; classes.len()];
         if type_reader.type_by() == TypeBy::Measurement {
-            // The detector only has to find a tube: any of its classes but the bottle. Parts
-            // other than the target are not measured: as obstacles they take the type the class
-            // names where it is one of the scenario's, else the bulkiest (the larger obstacle).
+            // The detector only has to find a tube (the shipped one's `tube` class; any class
+            // but the foreign object's in a model trained per catalogue). Parts other than the
+            // target are not measured: as obstacles they take the type the class names where it
+            // is one of the scenario's, else the bulkiest (the larger obstacle).
             for (class, name) in classes.iter().enumerate() {
-                if name != "bottle" {
+                if !is_foreign_class(name) {
                     let named = scenario.part_types.iter().position(|t| &t.name == name);
                     type_of_class[class] = Some(named.unwrap_or(type_reader.bulkiest()));
                 }
@@ -228,7 +231,7 @@ impl CameraPerception {
             ),
             type_of_class,
             type_reader,
-            bottle_class: class_index("bottle"),
+            bottle_class: FOREIGN_CLASSES.iter().find_map(|name| class_index(name)),
             bottle_fitter,
         })
     }
