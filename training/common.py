@@ -250,11 +250,12 @@ def postprocess(rows, score_threshold, iou_threshold, frame):
 def predict(net, images, batch=8):
     """Decoded rows [N, cells, 5 + C] (input pixels) for uint8 inputs [N, H, W, 3]."""
     net.eval()
+    device = next(net.parameters()).device
     out = []
     for i in range(0, len(images), batch):
-        raw, centres, strides = flatten(net(to_tensor(images[i : i + batch])))
+        raw, centres, strides = flatten(net(to_tensor(images[i : i + batch]).to(device)))
         boxes = decode_boxes(raw, centres, strides)
-        out.append(torch.cat((boxes, torch.sigmoid(raw[..., 4:])), -1).numpy())
+        out.append(torch.cat((boxes, torch.sigmoid(raw[..., 4:])), -1).cpu().numpy())
     return np.concatenate(out)
 
 

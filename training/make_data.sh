@@ -10,15 +10,15 @@
 # tilt and bore. The "harsh" sets add a [sensor] section with strong noise, stains, dirt and badly
 # balanced light. Training seeds and held-out seeds are disjoint by construction:
 #
-#   train:    seed 7401 paper_50, 1100 images, default sensor realism
-#             seed 7402 catalogue_b, 500 images, default
-#             seed 7403 paper_50, 400 images, harsh
-#             seed 7404 catalogue_b, 200 images, harsh
+#   train:    seed 7401 paper_50, 2200 images, default sensor realism
+#             seed 7402 catalogue_b, 1000 images, default
+#             seed 7403 paper_50, 800 images, harsh
+#             seed 7404 catalogue_b, 400 images, harsh
 #   held-out: seed 9101 paper_50, 250 images, default; seed 9102 paper_50, 250 images, harsh
 #             seed 9111 catalogue_b, 150 images, default; seed 9112 catalogue_b, 150, harsh
 #   (tests/detect.rs renders seeds 4242 and 4243.)
 #
-# Usage: training/make_data.sh OUT_DIR [train|heldout|all]
+# Usage: training/make_data.sh OUT_DIR [train|heldout|all]   (PARALLEL=1 renders the sets at once)
 # Needs the release binary (cargo build --release --bin twincell) or TWINCELL=path.
 set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
@@ -61,17 +61,30 @@ make_set() {
     "$bin" dataset "$scenario" --count "$count" --out "$out/$name" --resolution 640 480 --family
 }
 
+pids=""
+# set NAME SCENARIO SEED COUNT HARSH: one set, in the background with PARALLEL=1.
+set_() {
+    if [ "${PARALLEL:-0}" = 1 ]; then
+        make_set "$@" &
+        pids="$pids $!"
+    else
+        make_set "$@"
+    fi
+}
 case "$which" in
     train|all)
-        make_set train_f_7401 "$paper" 7401 1100 0
-        make_set train_f_7402 "$catalogue_b" 7402 500 0
-        make_set train_f_7403_harsh "$paper" 7403 400 1
-        make_set train_f_7404_harsh "$catalogue_b" 7404 200 1 ;;&
+        set_ train_f_7401 "$paper" 7401 2200 0
+        set_ train_f_7402 "$catalogue_b" 7402 1000 0
+        set_ train_f_7403_harsh "$paper" 7403 800 1
+        set_ train_f_7404_harsh "$catalogue_b" 7404 400 1 ;;&
     heldout|all)
-        make_set heldout_f_9101 "$paper" 9101 250 0
-        make_set heldout_f_9102_harsh "$paper" 9102 250 1
-        make_set heldout_f_9111 "$catalogue_b" 9111 150 0
-        make_set heldout_f_9112_harsh "$catalogue_b" 9112 150 1 ;;
+        set_ heldout_f_9101 "$paper" 9101 250 0
+        set_ heldout_f_9102_harsh "$paper" 9102 250 1
+        set_ heldout_f_9111 "$catalogue_b" 9111 150 0
+        set_ heldout_f_9112_harsh "$catalogue_b" 9112 150 1 ;;
     train) ;;
     *) echo "make_data.sh: unknown set '$which' (train, heldout or all)" >&2; exit 2 ;;
 esac
+for pid in $pids; do
+    wait "$pid"
+done

@@ -6,7 +6,7 @@
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use super::family::{FAMILY_CLASSES, family_shot};
+use super::family::{FAMILY_CLASSES, family_model, family_shot};
 use super::renderer::Renderer;
 use super::shot::{CameraRig, ObjectTruth, Shot, ShotError};
 use crate::cell::CellModel;
@@ -118,6 +118,10 @@ pub fn export_family(
     count: u64,
     out: &Path,
 ) -> Result<DatasetSummary, DatasetError> {
+    let model = &family_model(model).map_err(|e| DatasetError::Shot {
+        index: 0,
+        source: ShotError::Cell(e),
+    })?;
     let scenario = model.scenario();
     let names: Vec<String> = FAMILY_CLASSES.iter().map(|c| (*c).to_string()).collect();
     write_set(scenario, rig, &names, count, out, |index| {

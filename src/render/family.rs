@@ -17,7 +17,7 @@ use super::material::Material;
 use super::mesh::Mesh;
 use super::scene::{ObjectKind, Scene, SceneObject};
 use super::shot::{CameraRig, ObjectTruth, Shot, ShotError, silhouette_box};
-use crate::cell::{Cell, CellModel};
+use crate::cell::{Cell, CellError, CellModel};
 use crate::rng::SimRng;
 use crate::scenario::{CAMERA_ENVELOPE, CameraSection, Scenario};
 use crate::sim::{BoreForm, PartInstance};
@@ -28,7 +28,9 @@ const FAMILY_SALT: u64 = 0x46_414D_494C_5931;
 pub const FAMILY_CLASSES: [&str; 2] = ["tube", "foreign"];
 /// Smallest end face drawn, as its outer diameter across the image, pixels: a part narrower
 /// than this cannot be measured (nor found) by any camera of the envelope.
-pub const MIN_FACE_PX: f64 = 16.0;
+pub const MIN_FACE_PX: f64 = 20.0;
+/// Bottles per family shot, fewest and most: foreign objects appear in most images.
+pub const FAMILY_BOTTLES: [i64; 2] = [1, 3];
 /// Largest end face drawn, as a share of the image's width.
 pub const MAX_FACE_SHARE: f64 = 0.45;
 /// Draws before a shot gives up placing a tube.
@@ -248,7 +250,16 @@ fn tube_instance(bore_mm: f64, outer_mm: f64, height_mm: f64, rng: &mut SimRng) 
     }
 }
 
-/// Stages family shot `index` of `model`'s scenario at `base_rig`'s resolution.
+/// The cell model family shots are drawn in: `model`'s, with [`FAMILY_BOTTLES`] bottles.
+pub fn family_model(model: &CellModel) -> Result<CellModel, CellError> {
+    let mut scenario = model.scenario().clone();
+    scenario.bottle.enabled = true;
+    scenario.bottle.count_range = FAMILY_BOTTLES;
+    CellModel::with_urdf(scenario, Some(model.urdf().clone()))
+}
+
+/// Stages family shot `index` of `model`'s scenario (a [`family_model`]) at `base_rig`'s
+/// resolution.
 pub fn family_shot(
     model: &CellModel,
     base_rig: &CameraRig,

@@ -5,6 +5,11 @@ use super::Scenario;
 use super::camera_sections::{CAMERA_ENVELOPE, CameraSection};
 use super::validate::{Checker, MAX_CELL_REACH_M, ScenarioError};
 
+/// Tilt past the envelope's edge still accepted, degrees (rounding of given coordinates).
+const EDGE_SLACK_DEG: f64 = 0.02;
+/// Distance past the envelope's edges still accepted, m.
+const EDGE_SLACK_M: f64 = 1e-4;
+
 impl Scenario {
     /// Checks `[camera]`, `[lights]` and `[sensor]`.
     pub(super) fn validate_camera(&self, c: &Checker) -> Result<(), ScenarioError> {
@@ -64,8 +69,9 @@ impl Scenario {
             return Err(c.fail(axis_key, "the camera looks at its own centre"));
         }
         let (tilt, distance) = camera.tilt_and_distance(&self.conveyor);
-        // A hair of slack for the rounding of an axis given at the envelope's very edge.
-        if !(tilt <= envelope.max_tilt_deg + 1e-9) {
+        // Slack for an axis or a distance given at the envelope's very edge in rounded
+        // coordinates (0.1 mm at 0.4 m turns the axis by 0.014 degrees).
+        if !(tilt <= envelope.max_tilt_deg + EDGE_SLACK_DEG) {
             return Err(outside(
                 axis_key,
                 format!(
@@ -76,7 +82,7 @@ impl Scenario {
             ));
         }
         let [d_low, d_high] = envelope.distance_m;
-        if !(d_low - 1e-9..=d_high + 1e-9).contains(&distance) {
+        if !(d_low - EDGE_SLACK_M..=d_high + EDGE_SLACK_M).contains(&distance) {
             return Err(outside(
                 "camera.position_m",
                 format!(
