@@ -71,7 +71,7 @@ impl Scenario {
         let (tilt, distance) = camera.tilt_and_distance(&self.conveyor);
         // Slack for an axis or a distance given at the envelope's very edge in rounded
         // coordinates (0.1 mm at 0.4 m turns the axis by 0.014 degrees).
-        if !(tilt <= envelope.max_tilt_deg + EDGE_SLACK_DEG) {
+        if tilt.is_nan() || tilt > envelope.max_tilt_deg + EDGE_SLACK_DEG {
             return Err(outside(
                 axis_key,
                 format!(
