@@ -79,7 +79,7 @@ impl TrialObserver for TrialWatch {
             let n = frame
                 .detections
                 .iter()
-                .filter(|d| d.class_name == "bottle")
+                .filter(|d| twincell::detect::is_foreign_class(&d.class_name))
                 .count();
             self.seen.detected_bottles = Some(n);
         }

@@ -1,16 +1,16 @@
-//! The shipped detector on freshly rendered pick-station images, checked against the renderer's
-//! ground truth (not against recorded outputs). Seeds 4242 (the paper's catalogue) and 4243 (the
-//! second catalogue, scenarios/suite/catalogue_b.toml) are used by no training or held-out set
-//! (see training/make_data.sh). Each image draws its part's type and pose and the bottle's place
-//! from the seed. Renders on whatever adapter wgpu finds (the software one without a GPU) and
-//! fails, naming the problem, when there is none.
+//! The shipped detector on freshly rendered images, checked against the renderer's ground truth
+//! (not against recorded outputs). It finds tube end faces (class `tube`) and foreign objects
+//! (`foreign`): on the two catalogues' own pick-station shots (seeds 4242, the paper's, and 4243,
+//! scenarios/suite/catalogue_b.toml) and on family shots drawn over the whole tube family and
+//! camera envelope (seeds 4244 and 4245). No training or held-out set uses these seeds (see
+//! training/make_data.sh). Renders on whatever adapter wgpu finds (the software one without a
+//! GPU) and fails, naming the problem, when there is none.
 
 mod common;
 
-use std::collections::BTreeSet;
-
 use twincell::cell::CellModel;
 use twincell::detect::{Detection, Detector, DetectorModel};
+use twincell::render::family::{family_model, family_shot};
 use twincell::render::{CameraRig, ObjectTruth, Renderer, RendererOptions, Shot};
 use twincell::scenario::{Scenario, SensorSection};
 
@@ -59,19 +59,23 @@ fn edges(t: &ObjectTruth) -> [f32; 4] {
     [x0, y0, x1 + 1.0, y1 + 1.0]
 }
 
-/// Detections against truths, by class name: the scenario numbers its own types, the detector
-/// its classes (both catalogues' types), so only the names compare.
+/// The detector's class for a truth: `foreign` for a bottle, `tube` for any part.
+fn class_of(truth: &ObjectTruth) -> &'static str {
+    if truth.class == "bottle" || truth.class == "foreign" {
+        "foreign"
+    } else {
+        "tube"
+    }
+}
+
+/// Detections against truths, by class.
 #[derive(Debug, Default)]
 struct Tally {
     truths: usize,
     found: usize,
     detections: usize,
     correct: usize,
-    bottle_as_part: usize,
-    /// Parts some detection boxes at IoU >= 0.5, and of those the ones it names right.
-    parts_boxed: usize,
-    parts_named: usize,
-    part_types: BTreeSet<String>,
+    bottle_as_tube: usize,
     misses: Vec<String>,
 }
 
@@ -82,7 +86,7 @@ impl Tally {
         for t in truths {
             let hit = found
                 .iter()
-                .any(|d| d.class_name == t.class && iou(d.box_px, edges(t)) >= 0.5);
+                .any(|d| d.class_name == class_of(t) && iou(d.box_px, edges(t)) >= 0.5);
             if hit {
                 self.found += 1;
             } else {
@@ -90,16 +94,6 @@ impl Tally {
                     "{label}: {} at {:?} missed; got {found:?}",
                     t.class, t.bbox_px
                 ));
-            }
-            if t.class != "bottle" {
-                self.part_types.insert(t.class.clone());
-                let best = found
-                    .iter()
-                    .max_by(|a, b| iou(a.box_px, edges(t)).total_cmp(&iou(b.box_px, edges(t))));
-                if let Some(d) = best.filter(|d| iou(d.box_px, edges(t)) >= 0.5) {
-                    self.parts_boxed += 1;
-                    self.parts_named += usize::from(d.class_name == t.class);
-                }
             }
         }
         for d in found {
@@ -109,12 +103,29 @@ impl Tally {
             let Some(t) = best.filter(|t| iou(d.box_px, edges(t)) >= 0.5) else {
                 continue;
             };
-            if t.class == d.class_name {
+            if class_of(t) == d.class_name {
                 self.correct += 1;
-            } else if t.class == "bottle" {
-                self.bottle_as_part += 1;
+            } else if class_of(t) == "foreign" {
+                self.bottle_as_tube += 1;
             }
         }
+    }
+}
+
+fn renderer(scenario: &Scenario) -> Renderer {
+    match Renderer::new(RendererOptions {
+        msaa_samples: scenario.camera.msaa_samples,
+        supersample: scenario.camera.supersample,
+    }) {
+        Ok(r) => r,
+        Err(e) => panic!("no renderer: {e}"),
+    }
+}
+
+fn shipped() -> Detector {
+    match Detector::load_default() {
+        Ok(d) => d,
+        Err(e) => panic!("{e}"),
     }
 }
 
@@ -125,33 +136,13 @@ fn tally_renders(scenario: &Scenario, per_sensor: u64) -> Tally {
         Ok(r) => r,
         Err(e) => panic!("camera: {e}"),
     };
-    let mut renderer = match Renderer::new(RendererOptions {
-        msaa_samples: scenario.camera.msaa_samples,
-        supersample: scenario.camera.supersample,
-    }) {
-        Ok(r) => r,
-        Err(e) => panic!("no renderer: {e}"),
-    };
-    let mut detector = match Detector::load_default() {
-        Ok(d) => d,
-        Err(e) => panic!("{e}"),
-    };
-    for part in &scenario.part_types {
-        assert!(
-            detector.class_names().contains(&part.name),
-            "{} is no class of the shipped detector",
-            part.name
-        );
-    }
+    let mut renderer = renderer(scenario);
+    let mut detector = shipped();
+    let model = CellModel::with_urdf(scenario.clone(), None).expect("cell model");
     let mut tally = Tally::default();
     for (name, sensor) in [("default", scenario.sensor.clone()), ("harsh", harsh())] {
         for index in 0..per_sensor {
-            let shot = match Shot::pick_station(
-                &CellModel::with_urdf(scenario.clone(), None).expect("cell model"),
-                &rig,
-                &sensor,
-                index,
-            ) {
+            let shot = match Shot::pick_station(&model, &rig, &sensor, index) {
                 Ok(s) => s,
                 Err(e) => panic!("shot {index}: {e}"),
             };
@@ -171,9 +162,9 @@ fn tally_renders(scenario: &Scenario, per_sensor: u64) -> Tally {
     tally
 }
 
-/// Recall and precision (right class at IoU >= 0.5) of at least 0.9 each, and no bottle
-/// reported as a part.
-fn assert_accurate(tally: &Tally, min_truths: usize) {
+/// Recall and precision (right class at IoU >= 0.5) of at least `least` each, and at most
+/// `bottles_as_tubes` bottles reported as a tube.
+fn assert_accurate(tally: &Tally, min_truths: usize, least: f64, bottles_as_tubes: usize) {
     assert!(
         tally.truths >= min_truths,
         "too few labelled objects: {}",
@@ -181,45 +172,85 @@ fn assert_accurate(tally: &Tally, min_truths: usize) {
     );
     let recall = tally.found as f64 / tally.truths as f64;
     let precision = tally.correct as f64 / tally.detections.max(1) as f64;
-    assert_eq!(
-        tally.bottle_as_part, 0,
-        "bottles reported as parts: {tally:?}"
+    assert!(
+        tally.bottle_as_tube <= bottles_as_tubes,
+        "bottles reported as tubes: {tally:?}"
     );
-    assert!(recall >= 0.9, "recall {recall:.3}: {:#?}", tally.misses);
-    assert!(precision >= 0.9, "precision {precision:.3}: {tally:?}");
+    assert!(recall >= least, "recall {recall:.3}: {:#?}", tally.misses);
+    assert!(precision >= least, "precision {precision:.3}: {tally:?}");
 }
 
-/// On 24 fresh renders (12 with the scenario's sensor realism, 12 harsh), every labelled part
-/// and bottle is found with the right class at IoU >= 0.5 in at least 90% of cases, at least
-/// 90% of the detections are right, and no bottle is ever reported as a part.
+/// The detector knows no catalogue: its classes are a tube's end face and a foreign object.
 #[test]
-fn shipped_detector_finds_the_rendered_parts_and_bottles() {
+fn shipped_detector_finds_tubes_not_catalogue_entries() {
+    let detector = shipped();
+    assert_eq!(detector.class_names(), ["tube", "foreign"]);
+}
+
+/// On 24 fresh renders of the paper's cell (12 with its sensor realism, 12 harsh), every part
+/// and bottle is found as a tube or a foreign object at IoU >= 0.5 in at least 95 % of cases, at
+/// least 95 % of the detections are right, and no bottle is reported as a tube.
+#[test]
+fn shipped_detector_finds_the_paper_parts_and_bottles() {
     let tally = tally_renders(&scenario(), IMAGES_PER_SENSOR);
-    assert_accurate(&tally, 40);
+    assert_accurate(&tally, 40, 0.95, 0);
 }
 
 /// The second part catalogue (other bores and walls; scenarios/suite/catalogue_b.toml): on 36
-/// fresh renders (18 default, 18 harsh) whose draws cover all six of its types, recall and
-/// precision of at least 0.9, no bottle as a part, and every part the detector boxes named with
-/// its own type (never one of the paper's, which the detector also knows) in at least 95 % of
-/// cases.
+/// fresh renders (18 default, 18 harsh), the same.
 #[test]
-fn shipped_detector_knows_the_second_catalogue() {
+fn shipped_detector_finds_the_second_catalogue() {
     let scenario = scenario_at("suite/catalogue_b.toml", 4243);
     let tally = tally_renders(&scenario, 18);
-    assert_eq!(
-        tally.part_types.len(),
-        scenario.part_types.len(),
-        "the draws miss a type: {:?}",
-        tally.part_types
-    );
-    assert_accurate(&tally, 60);
-    let named = tally.parts_named as f64 / tally.parts_boxed.max(1) as f64;
-    assert!(
-        tally.parts_boxed >= 34 && named >= 0.95,
-        "parts boxed {}, named right {named:.3}: {tally:?}",
-        tally.parts_boxed
-    );
+    assert_accurate(&tally, 60, 0.95, 0);
+}
+
+/// Family shots (`twincell dataset --family`): 40 images of each sensor realism, each with its
+/// own camera drawn over the whole envelope (tilt 0-35 degrees in any direction, 0.35-1.2 m,
+/// any roll, 35-80 degrees of field of view) and its own tubes over the whole family (bores
+/// 8-90 mm, outer/bore 1.15-3, heights 30-120 mm, steel finishes): recall and precision of at
+/// least 0.95, at most one bottle as a tube, and the tilts drawn reach past 30 degrees.
+#[test]
+fn shipped_detector_finds_family_tubes_over_the_camera_envelope() {
+    let mut detector = shipped();
+    let mut tally = Tally::default();
+    let mut steepest: f64 = 0.0;
+    for (seed, sensor) in [(4244, None), (4245, Some(harsh()))] {
+        let mut scenario = scenario_at("paper_50.toml", seed);
+        if let Some(sensor) = sensor {
+            scenario.sensor = sensor;
+        }
+        let rig = match CameraRig::from_scenario(&scenario) {
+            Ok(r) => r,
+            Err(e) => panic!("camera: {e}"),
+        };
+        let mut renderer = renderer(&scenario);
+        let model = CellModel::with_urdf(scenario.clone(), None).expect("cell model");
+        let model = family_model(&model).expect("family cell model");
+        for index in 0..40 {
+            let family = match family_shot(&model, &rig, index) {
+                Ok(s) => s,
+                Err(e) => panic!("shot {index}: {e}"),
+            };
+            steepest = steepest.max(family.camera.tilt_deg);
+            let image = match family.shot.render(&mut renderer) {
+                Ok(i) => i,
+                Err(e) => panic!("render {index}: {e}"),
+            };
+            let found = match detector.detect(&image) {
+                Ok(f) => f,
+                Err(e) => panic!("detect {index}: {e}"),
+            };
+            let label = format!("seed {seed} image {index} ({:?})", family.camera);
+            tally.add(&label, &family.truth(), &found);
+        }
+    }
+    eprintln!("{tally:?}");
+    assert!(steepest > 30.0, "steepest tilt drawn {steepest}");
+    // The goal is no bottle as a tube anywhere in the envelope; not met yet at its far, wide
+    // corner (a bottle standing end-on, some 20 px across, 1.2 m from a 75 degree camera): one
+    // in these 80 images, one in the 800 held-out images (assets/models/detector.json).
+    assert_accurate(&tally, 120, 0.95, 1);
 }
 
 /// Detection is deterministic: the same image twice gives the same bytes, and the network built

@@ -93,15 +93,37 @@ def letterbox(image, width, height, pad, label):
     return canvas, Letterbox(nw / w, ox, oy, w, h)
 
 
+FOREIGN = ("foreign", "bottle")  # the class of foreign objects, by either name
+
+
 def union_names(data_dirs):
-    """The classes of several datasets (each rendered from its own part catalogue): every part
-    type in order of first appearance, then `bottle` last. Types of the same name are one class."""
-    parts = []
+    """The classes of several datasets: every class in order of first appearance, the foreign
+    objects' class (`foreign`, or `bottle` in catalogue sets) last. Classes of the same name are
+    one class."""
+    parts, foreign = [], []
     for d in data_dirs:
         for name in read_names(d):
-            if name != "bottle" and name not in parts:
-                parts.append(name)
-    return parts + ["bottle"]
+            group = foreign if name in FOREIGN else parts
+            if name not in group:
+                group.append(name)
+    return parts + foreign
+
+
+def read_meta(data_dir, split):
+    """The label metadata of a family set (`twincell dataset --family`): per image, in the order
+    `read_split` reads them, the JSON beside its label file, or None where there is none."""
+    label_dir = os.path.join(data_dir, "labels", split)
+    image_dir = os.path.join(data_dir, "images", split)
+    stems = sorted(f[:-4] for f in os.listdir(image_dir) if f.endswith(".png"))
+    metas = []
+    for stem in stems:
+        path = os.path.join(label_dir, stem + ".json")
+        if os.path.exists(path):
+            with open(path, encoding="utf-8") as f:
+                metas.append(json.load(f))
+        else:
+            metas.append(None)
+    return metas
 
 
 def class_map(data_dir, names):
@@ -228,11 +250,12 @@ def postprocess(rows, score_threshold, iou_threshold, frame):
 def predict(net, images, batch=8):
     """Decoded rows [N, cells, 5 + C] (input pixels) for uint8 inputs [N, H, W, 3]."""
     net.eval()
+    device = next(net.parameters()).device
     out = []
     for i in range(0, len(images), batch):
-        raw, centres, strides = flatten(net(to_tensor(images[i : i + batch])))
+        raw, centres, strides = flatten(net(to_tensor(images[i : i + batch]).to(device)))
         boxes = decode_boxes(raw, centres, strides)
-        out.append(torch.cat((boxes, torch.sigmoid(raw[..., 4:])), -1).numpy())
+        out.append(torch.cat((boxes, torch.sigmoid(raw[..., 4:])), -1).cpu().numpy())
     return np.concatenate(out)
 
 
@@ -253,7 +276,7 @@ def evaluate(detections, targets, names, operating_threshold, iou_match=0.5):
 
     detections: per image, list of (class, score, box) from `postprocess` at a low threshold.
     targets: per image, array [k, 5] of class, x0, y0, x1, y1 (same pixels as the boxes)."""
-    bottle = names.index("bottle") if "bottle" in names else -1
+    bottle = next((names.index(n) for n in FOREIGN if n in names), -1)
     per_class = {}
     bottle_as_part = 0
     for c, name in enumerate(names):

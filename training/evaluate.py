@@ -1,7 +1,9 @@
 """Scores the exported detector (through ONNX Runtime, as shipped) on held-out sets.
 
 mAP@0.5 over the classes, per-class AP, precision and recall at the card's operating threshold,
-and the count of bottles reported as a part at that threshold. Images are letterboxed as the Rust side does it
+and the count of bottles reported as a part at that threshold. On family sets (`twincell dataset
+--family`, whose label metadata records each image's camera and each tube's size) also mAP@0.5
+per camera tilt band and the tubes' AP per bore-size band. Images are letterboxed as the Rust side does it
 (common.letterbox) and boxes are compared in image pixels. Held-out sets are rendered by
 make_data.sh with seeds never used in training (both splits of each set are used). Writes the
 metrics into the model card under "heldout" and prints them.
@@ -18,6 +20,66 @@ import onnxruntime as ort
 
 import common
 
+TILT_BANDS = ((0.0, 10.0), (10.0, 20.0), (20.0, 30.0), (30.0, 35.0))
+BORE_BANDS_MM = ((8.0, 16.0), (16.0, 32.0), (32.0, 64.0), (64.0, 90.0))
+
+
+def in_band(value, band, last):
+    """Half-open bands, the last one closed."""
+    low, high = band
+    return low <= value < high or (last and value == high)
+
+
+def band_metrics(detections, targets, metas, names, threshold):
+    """mAP@0.5 per tilt band (whole images) and the tube class's AP per bore band (tubes of
+    other bores ignored: their truths dropped, and the detections that hit them)."""
+    tilt, bore = {}, {}
+    tube = names.index("tube") if "tube" in names else 0
+    for i, band in enumerate(TILT_BANDS):
+        idx = [
+            k
+            for k, m in enumerate(metas)
+            if m and in_band(m["camera"]["tilt_deg"], band, i == len(TILT_BANDS) - 1)
+        ]
+        if idx:
+            r = common.evaluate([detections[k] for k in idx], [targets[k] for k in idx], names, threshold)
+            tilt[f"{band[0]:g}-{band[1]:g}"] = {
+                "map50": r["map50"],
+                "images": len(idx),
+                "per_class_ap50": {n: v["ap50"] for n, v in r["per_class"].items()},
+                "bottle_as_part": r["bottle_as_part"],
+            }
+    for i, band in enumerate(BORE_BANDS_MM):
+        dets_b, tgts_b, truths = [], [], 0
+        for dets, t, m in zip(detections, targets, metas):
+            if not m:
+                continue
+            objects = m["objects"]
+            keep = np.ones(len(t), dtype=bool)
+            for j, o in enumerate(objects):
+                if int(t[j, 0]) == tube:
+                    d = 2.0 * o["bore"]["radius_mm"]
+                    keep[j] = in_band(d, band, i == len(BORE_BANDS_MM) - 1)
+            others = t[~keep]
+            kept_dets = []
+            for det in dets:
+                if det[0] == tube and len(others):
+                    ious = common.box_iou(det[2][None], others[:, 1:])[0]
+                    if ious.max() >= 0.5:
+                        continue
+                kept_dets.append(det)
+            dets_b.append(kept_dets)
+            tgts_b.append(t[keep])
+            truths += int((t[keep][:, 0] == tube).sum())
+        if truths:
+            r = common.evaluate(dets_b, tgts_b, names, threshold)
+            bore[f"{band[0]:g}-{band[1]:g}"] = {
+                "tube_ap50": r["per_class"][names[tube]]["ap50"],
+                "tubes": truths,
+                "recall": r["per_class"][names[tube]]["recall"],
+            }
+    return tilt, bore
+
 
 def main(argv):
     p = argparse.ArgumentParser(description=__doc__)
@@ -32,7 +94,7 @@ def main(argv):
     opts = ort.SessionOptions()
     opts.intra_op_num_threads = 1
     session = ort.InferenceSession(args.model, opts, providers=["CPUExecutionProvider"])
-    detections, targets, sets = [], [], []
+    detections, targets, sets, metas = [], [], [], []
     start = time.time()
     for d in args.data:
         # A set from one part catalogue holds a subset of the card's classes.
@@ -42,6 +104,7 @@ def main(argv):
             images, tgts, frames, _ = common.read_split(
                 d, split, card["input_width"], card["input_height"], card["pad_value"], classes
             )
+            metas.extend(common.read_meta(d, split))
             for image, t, frame in zip(images, tgts, frames):
                 x = common.to_tensor(image[None]).numpy()
                 rows = session.run(None, {"images": x})[0][0]
@@ -52,11 +115,19 @@ def main(argv):
                 n += 1
         sets.append({"dir": os.path.basename(os.path.normpath(d)), "images": n})
     metrics = common.evaluate(detections, targets, names, card["score_threshold"])
+    if any(metas):
+        tilt, bore = band_metrics(detections, targets, metas, names, card["score_threshold"])
+        metrics["per_tilt_band_deg"] = tilt
+        metrics["per_bore_band_mm"] = bore
     metrics["sets"] = sets
     metrics["images"] = len(targets)
     metrics["score_threshold"] = card["score_threshold"]
     print(f"held-out images {len(targets)} ({time.time() - start:.0f} s)")
     print(f"mAP@0.5 {metrics['map50']:.4f}; bottles reported as parts: {metrics['bottle_as_part']}")
+    for band, m in metrics.get("per_tilt_band_deg", {}).items():
+        print(f"tilt {band:>6} deg: mAP@0.5 {m['map50']:.4f} over {m['images']} images")
+    for band, m in metrics.get("per_bore_band_mm", {}).items():
+        print(f"bore {band:>6} mm: tube AP50 {m['tube_ap50']:.4f}, recall {m['recall']:.4f}, {m['tubes']} tubes")
     print(f"{'class':<10} {'AP50':>6} {'P':>6} {'R':>6} {'truths':>6}")
     for name, m in metrics["per_class"].items():
         print(

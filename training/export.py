@@ -29,6 +29,32 @@ INPUT_LAYOUT = (
 )
 
 
+# What the training and held-out images are drawn over (src/render/family.rs,
+# src/scenario/camera_sections.rs CAMERA_ENVELOPE; training/make_data.sh).
+DATA_ENVELOPE = {
+    "camera": {
+        "tilt_deg": [0.0, 35.0],
+        "tilt_direction": "any (azimuth 0-360 degrees)",
+        "distance_to_pick_station_m": [0.35, 1.2],
+        "roll_deg": [-180.0, 180.0],
+        "horizontal_fov_deg": [35.0, 80.0],
+        "detector_frame_px": [640, 480],
+    },
+    "tubes": {
+        "bore_mm": [8.0, 90.0],
+        "outer_to_bore": [1.15, 3.0],
+        "height_mm": [30.0, 120.0],
+        "finish": "steel, end-face albedo 0.45-0.85, specular 0.08-0.5, shininess 8-48",
+        "max_roundness_mm": 0.3,
+        "per_image": [1, 3],
+        "smallest_face_px": "outer diameter at least 20 px of the 640 px frame",
+    },
+    "foreign": "the scenarios' bottles, 1-3 a cell, standing or lying",
+    "cells": ["scenarios/paper_50.toml", "scenarios/suite/catalogue_b.toml"],
+    "sensor": ["each scenario's own", "harsh (make_data.sh HARSH)"],
+}
+
+
 def main(argv):
     p = argparse.ArgumentParser(description=__doc__)
     p.add_argument("--weights", required=True, help="train.py output (.pt)")
@@ -55,8 +81,11 @@ def main(argv):
     with open(os.path.splitext(args.weights)[0] + ".train.json", encoding="utf-8") as f:
         training = json.load(f)
     card = {
-        "name": "twincell part detector",
+        "name": "twincell tube detector",
         "classes": names,
+        "finds": "tube: a tube's end face (any tube of the family below); foreign: a bottle or "
+        "other foreign object. The part's type is named by measurement, not by the detector.",
+        "data_envelope": DATA_ENVELOPE,
         "input_width": width,
         "input_height": height,
         "input_layout": INPUT_LAYOUT,
@@ -72,6 +101,8 @@ def main(argv):
             "seed": training["seed"],
             "threads": training["threads"],
             "torch": training["torch"],
+            "device": training.get("device", "cpu"),
+            "epochs_run": training.get("epochs_run"),
             "seconds": training["seconds"],
             "val_map50": training["val"]["map50"],
         },

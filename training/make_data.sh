@@ -1,21 +1,24 @@
 #!/usr/bin/env bash
-# Renders the detector's training and held-out sets with `twincell dataset` at the camera's
-# 640 x 480 detector resolution. Every set is one of the two part catalogues' scenarios with its
-# own `seed` (so its own shot stream): the paper's six axles (scenarios/paper_50.toml) or the
-# second catalogue's six sleeves (scenarios/suite/catalogue_b.toml); the detector learns the
-# union of their types (training/common.py, union_names). The "harsh" sets add a [sensor]
-# section with strong noise, stains, dirt and badly balanced light. Training seeds and held-out
-# seeds are disjoint by construction:
+# Renders the detector's training and held-out sets with `twincell dataset --family` at the
+# detector's 640 x 480 input resolution. Every image draws its own camera over the camera envelope
+# (tilt 0-35 degrees in any direction, 0.35-1.2 m from the pick station, any roll, field of view
+# 35-80 degrees) and one to three tubes over the tube family (bores 8-90 mm, outer/bore 1.15-3,
+# heights 30-120 mm, steel finishes) in the cell of one of two scenarios, with that scenario's
+# bottles as the foreign objects: the paper's (scenarios/paper_50.toml) or the second
+# catalogue's (scenarios/suite/catalogue_b.toml). Two classes: `tube` and `foreign`. The label
+# metadata (labels/SPLIT/STEM.json) records each image's camera and tubes, so evaluate.py bands by
+# tilt and bore. The "harsh" sets add a [sensor] section with strong noise, stains, dirt and badly
+# balanced light. Training seeds and held-out seeds are disjoint by construction:
 #
-#   paper_50     train:    seed 731 (the paper's), 1200 images, default sensor realism
-#                train:    seed 7311, 400 images, harsh sensor realism
-#                held-out: seed 9001, 200 images, default; seed 9002, 200 images, harsh
-#   catalogue_b  train:    seed 7321, 800 images, default sensor realism
-#                train:    seed 7322, 300 images, harsh sensor realism
-#                held-out: seed 9011, 200 images, default; seed 9012, 200 images, harsh
+#   train:    seed 7401 paper_50, 2200 images, default sensor realism
+#             seed 7402 catalogue_b, 1000 images, default
+#             seed 7403 paper_50, 800 images, harsh
+#             seed 7404 catalogue_b, 400 images, harsh
+#   held-out: seed 9101 paper_50, 250 images, default; seed 9102 paper_50, 250 images, harsh
+#             seed 9111 catalogue_b, 150 images, default; seed 9112 catalogue_b, 150, harsh
 #   (tests/detect.rs renders seeds 4242 and 4243.)
 #
-# Usage: training/make_data.sh OUT_DIR [train|heldout|all]
+# Usage: training/make_data.sh OUT_DIR [train|heldout|all]   (PARALLEL=1 renders the sets at once)
 # Needs the release binary (cargo build --release --bin twincell) or TWINCELL=path.
 set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
@@ -51,23 +54,37 @@ make_set() {
         echo "make_data.sh: $out/$name already has $count images"
         return
     fi
-    sed "s/^seed = .*/seed = $seed/" "$base" > "$scenario"
+    # The set's scenario extends the base by its absolute path (the base may extend its own).
+    printf 'extends = "%s"\nseed = %s\n' "$base" "$seed" > "$scenario"
     [ "$harsh" = 1 ] && printf '%s' "$HARSH" >> "$scenario"
     rm -rf "${out:?}/$name"
-    "$bin" dataset "$scenario" --count "$count" --out "$out/$name" --resolution 640 480
+    "$bin" dataset "$scenario" --count "$count" --out "$out/$name" --resolution 640 480 --family
 }
 
+pids=""
+# set NAME SCENARIO SEED COUNT HARSH: one set, in the background with PARALLEL=1.
+set_() {
+    if [ "${PARALLEL:-0}" = 1 ]; then
+        make_set "$@" &
+        pids="$pids $!"
+    else
+        make_set "$@"
+    fi
+}
 case "$which" in
     train|all)
-        make_set train_731 "$paper" 731 1200 0
-        make_set train_7311_harsh "$paper" 7311 400 1
-        make_set train_b_7321 "$catalogue_b" 7321 800 0
-        make_set train_b_7322_harsh "$catalogue_b" 7322 300 1 ;;&
+        set_ train_f_7401 "$paper" 7401 2200 0
+        set_ train_f_7402 "$catalogue_b" 7402 1000 0
+        set_ train_f_7403_harsh "$paper" 7403 800 1
+        set_ train_f_7404_harsh "$catalogue_b" 7404 400 1 ;;&
     heldout|all)
-        make_set heldout_9001 "$paper" 9001 200 0
-        make_set heldout_9002_harsh "$paper" 9002 200 1
-        make_set heldout_b_9011 "$catalogue_b" 9011 200 0
-        make_set heldout_b_9012_harsh "$catalogue_b" 9012 200 1 ;;
+        set_ heldout_f_9101 "$paper" 9101 250 0
+        set_ heldout_f_9102_harsh "$paper" 9102 250 1
+        set_ heldout_f_9111 "$catalogue_b" 9111 150 0
+        set_ heldout_f_9112_harsh "$catalogue_b" 9112 150 1 ;;
     train) ;;
     *) echo "make_data.sh: unknown set '$which' (train, heldout or all)" >&2; exit 2 ;;
 esac
+for pid in $pids; do
+    wait "$pid"
+done

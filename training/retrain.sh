@@ -6,7 +6,9 @@
 # Usage: training/retrain.sh [MODEL_DIR]   (default assets/models; give another directory to
 #        retrain beside the shipped model and compare)
 # Environment: DATA (default ~/.cache/twincell/detdata), TWINCELL (the release binary; default
-# $CARGO_TARGET_DIR/release/twincell or target/release/twincell), TWINCELL_VENV.
+# $CARGO_TARGET_DIR/release/twincell or target/release/twincell), TWINCELL_VENV, PYTHON (a
+# Python with torch, onnx and onnxruntime instead of the venv), DEVICE, THREADS, DEADLINE_S
+# (stop training after the epoch that ends past this many seconds), PARALLEL (make_data.sh).
 set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
 root="$(dirname "$here")"
@@ -15,18 +17,23 @@ models="${1:-$root/assets/models}"
 export DATA="${DATA:-$HOME/.cache/twincell/detdata}"
 data="$DATA"
 venv="${TWINCELL_VENV:-$HOME/.cache/twincell/venv}"
-"$here/setup.sh"
+[ -n "${PYTHON:-}" ] || "$here/setup.sh"
 "$here/make_data.sh" "$data" all
 mkdir -p "$models"
 # Relative to training/ (where the scripts run), so the card's recorded command names no checkout.
 models="$(realpath --relative-to="$here" "$models")"
-py="$venv/bin/python"
+py="${PYTHON:-$venv/bin/python}"
+# DEVICE=cuda trains on a GPU (the augmentation noise then comes from torch's generator on the
+# device, so the weights differ from the CPU run's); the default, the CPU on one thread, repeats
+# bit for bit. THREADS sets torch's CPU threads (default 1).
+device="${DEVICE:-cpu}"
+threads="${THREADS:-1}"
 export OMP_NUM_THREADS=1 OMP_WAIT_POLICY=passive
 cd "$here"
-nice -n 10 "$py" train.py --data "$data/train_731" "$data/train_7311_harsh" \
-    "$data/train_b_7321" "$data/train_b_7322_harsh" \
-    --out "$models/detector.pt" --epochs 12 --batch 16 --lr 3e-3 --input 320 256 --seed 6 \
-    --threads 1 --eval-every 4
+nice -n 10 "$py" train.py --data "$data/train_f_7401" "$data/train_f_7402" \
+    "$data/train_f_7403_harsh" "$data/train_f_7404_harsh" \
+    --out "$models/detector.pt" --epochs 30 --batch 32 --lr 3e-3 --input 320 256 --seed 6 \
+    --threads "$threads" --eval-every 10 --device "$device" ${DEADLINE_S:+--deadline-s "$DEADLINE_S"}
 "$py" export.py --weights "$models/detector.pt" --out "$models/detector.onnx"
-"$py" evaluate.py --model "$models/detector.onnx" --data "$data/heldout_9001" "$data/heldout_9002_harsh" \
-    "$data/heldout_b_9011" "$data/heldout_b_9012_harsh"
+"$py" evaluate.py --model "$models/detector.onnx" --data "$data/heldout_f_9101" \
+    "$data/heldout_f_9102_harsh" "$data/heldout_f_9111" "$data/heldout_f_9112_harsh"

@@ -43,19 +43,35 @@ def parse_args(argv):
     p.add_argument("--threads", type=int, default=1)
     p.add_argument("--limit", type=int, default=0, help="use only the first N training images")
     p.add_argument("--eval-every", type=int, default=5, help="epochs between val mAP checks")
+    p.add_argument(
+        "--deadline-s", type=float, default=0.0,
+        help="stop after the epoch that ends past this many seconds of training (0: never); "
+        "the record says how many epochs ran",
+    )
+    p.add_argument(
+        "--device", default="cpu",
+        help="torch device; `cpu` (the documented, bit-reproducible run) or e.g. `cuda`, where "
+        "the augmentation noise is drawn on the device from the same seed (a different stream)",
+    )
     return p.parse_args(argv)
 
 
-def augment(batch, rng):
-    """Random colour (per-channel gain, brightness, contrast) and Gaussian noise; float 0..1."""
+def augment(batch, rng, noise_gen=None):
+    """Random colour (per-channel gain, brightness, contrast) and Gaussian noise; float 0..1.
+    The noise comes from `rng` (numpy) or, given `noise_gen`, a torch generator on the batch's
+    device."""
     n = batch.shape[0]
-    gain = torch.from_numpy(rng.uniform(0.8, 1.2, (n, 3, 1, 1)).astype(np.float32))
-    bright = torch.from_numpy(rng.uniform(-0.1, 0.1, (n, 1, 1, 1)).astype(np.float32))
-    contrast = torch.from_numpy(rng.uniform(0.7, 1.3, (n, 1, 1, 1)).astype(np.float32))
+    dev = batch.device
+    gain = torch.from_numpy(rng.uniform(0.8, 1.2, (n, 3, 1, 1)).astype(np.float32)).to(dev)
+    bright = torch.from_numpy(rng.uniform(-0.1, 0.1, (n, 1, 1, 1)).astype(np.float32)).to(dev)
+    contrast = torch.from_numpy(rng.uniform(0.7, 1.3, (n, 1, 1, 1)).astype(np.float32)).to(dev)
     mean = batch.mean((1, 2, 3), keepdim=True)
     x = (batch * gain - mean) * contrast + mean + bright
-    sigma = torch.from_numpy(rng.uniform(0.0, 10.0 / 255.0, (n, 1, 1, 1)).astype(np.float32))
-    noise = torch.from_numpy(rng.standard_normal(x.shape).astype(np.float32))
+    sigma = torch.from_numpy(rng.uniform(0.0, 10.0 / 255.0, (n, 1, 1, 1)).astype(np.float32)).to(dev)
+    if noise_gen is None:
+        noise = torch.from_numpy(rng.standard_normal(x.shape).astype(np.float32))
+    else:
+        noise = torch.randn(x.shape, generator=noise_gen, device=dev)
     return (x + sigma * noise).clamp(0.0, 1.0)
 
 
@@ -115,7 +131,9 @@ def giou(a, b):
 
 def loss_fn(maps, targets, num_classes):
     raw, centres, strides = flatten(maps)
-    pos, cls_t, box_t = assign(targets, centres, strides, num_classes)
+    pos, cls_t, box_t = assign(targets, centres.cpu(), strides.cpu(), num_classes)
+    dev = raw.device
+    pos, cls_t, box_t = pos.to(dev), cls_t.to(dev), box_t.to(dev)
     n_pos = max(int(pos.sum()), 1)
     boxes = decode_boxes(raw, centres, strides)
     obj = F.binary_cross_entropy_with_logits(raw[..., 4], pos.float(), reduction="sum")
@@ -169,7 +187,14 @@ def main(argv):
         files = files[: args.limit]
     print(f"train {len(train_images)} images, val {len(val_images)}, classes {names}", flush=True)
 
-    net = Detector(len(names))
+    device = torch.device(args.device)
+    noise_gen = None
+    if device.type != "cpu":
+        # Some CUDA kernels (upsampling's backward) have no deterministic form: warn, not fail.
+        torch.use_deterministic_algorithms(True, warn_only=True)
+        noise_gen = torch.Generator(device=device)
+        noise_gen.manual_seed(args.seed)
+    net = Detector(len(names)).to(device)
     opt = torch.optim.Adam(net.parameters(), lr=args.lr, weight_decay=0.0)
     steps_per_epoch = len(train_images) // args.batch
     total = steps_per_epoch * args.epochs
@@ -198,7 +223,7 @@ def main(argv):
                     image, boxes = flip(image, boxes, False)
                 inputs.append(np.ascontiguousarray(image))
                 targets.append(boxes)
-            x = augment(common.to_tensor(np.stack(inputs)), rng)
+            x = augment(common.to_tensor(np.stack(inputs)).to(device), rng, noise_gen)
             for g in opt.param_groups:
                 g["lr"] = lr_at(step)
             loss, parts = loss_fn(net(x), targets, len(names))
@@ -216,6 +241,10 @@ def main(argv):
         if (epoch + 1) % args.eval_every == 0 or epoch + 1 == args.epochs:
             row["val_map50"] = validate(net, val_images, val_frames, val_targets, names)["map50"]
         history.append(row)
+        if args.deadline_s and time.time() - start > args.deadline_s and epoch + 1 < args.epochs:
+            row["stopped"] = f"deadline: stopped after epoch {epoch + 1} of {args.epochs}"
+            print(row["stopped"], flush=True)
+            break
         print(" ".join(f"{k}={v:.4f}" if isinstance(v, float) else f"{k}={v}" for k, v in row.items()), flush=True)
 
     # The record names paths relative to the project (or to $DATA), never this machine's.
@@ -227,7 +256,12 @@ def main(argv):
         else:
             command.append(common.project_path(a) if path_args else a)
     torch.save(
-        {"state_dict": net.state_dict(), "names": names, "input": [width, height]}, args.out
+        {
+            "state_dict": {k: v.cpu() for k, v in net.state_dict().items()},
+            "names": names,
+            "input": [width, height],
+        },
+        args.out,
     )
     val = validate(net, val_images, val_frames, val_targets, names)
     common.write_json(
@@ -241,9 +275,11 @@ def main(argv):
                 "train_digest_sha256": common.digest(files),
             },
             "torch": torch.__version__,
+            "device": torch.cuda.get_device_name(device) if device.type == "cuda" else "cpu",
             "seed": args.seed,
             "threads": args.threads,
             "seconds": round(time.time() - start, 1),
+            "epochs_run": len(history),
             "history": history,
             "val": val,
         },

@@ -139,7 +139,7 @@ pub fn annotated_thumbnail(frame: &PerceptionFrame) -> RgbImage {
     let mut image = frame.image.clone();
     for detection in &frame.detections {
         let [x0, y0, x1, y1] = detection.box_px;
-        let colour = if detection.class_name == "bottle" {
+        let colour = if matches!(detection.class_name.as_str(), "bottle" | "foreign") {
             BOTTLE_BOX
         } else {
             PART_BOX

@@ -5,7 +5,9 @@
 //! camera pose the frame was really taken from (with the scenario's pose jitter), and per labelled
 //! object its class, pixel box (inclusive first/last column and row) and, for parts, the bore's
 //! projected centre, mean radius and roundness in pixels and its true radius and roundness in mm.
-//! `dataset` writes an Ultralytics/YOLO dataset (see [`twincell::render::dataset`]).
+//! `dataset` writes an Ultralytics/YOLO dataset (see [`twincell::render::dataset`]); with
+//! `--family`, drawn over the tube family and the camera envelope (see
+//! [`twincell::render::family`]).
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -51,6 +53,11 @@ pub struct DatasetArgs {
     /// Image width and height in pixels, overriding the scenario's `camera.resolution_px`.
     #[arg(long, value_names = ["W", "H"], num_args = 2)]
     resolution: Option<Vec<u32>>,
+    /// Draw each image's camera over the camera envelope and its tubes over the whole tube
+    /// family (classes `tube` and `foreign`, a JSON of the draw beside each label file), in the
+    /// scenario's cell, bottles and sensor realism.
+    #[arg(long)]
+    family: bool,
 }
 
 #[derive(Debug, Serialize)]
@@ -136,7 +143,11 @@ pub fn run_dataset(args: &DatasetArgs) -> Result<ExitCode> {
         .map_err(|e| BadInput(format!("{}: {e}", args.scenario.display())))?;
     let mut renderer = renderer_for(&scenario)?;
     let start = Instant::now();
-    let summary = dataset::export(&model, &rig, &mut renderer, args.count, &args.out)?;
+    let summary = if args.family {
+        dataset::export_family(&model, &rig, &mut renderer, args.count, &args.out)?
+    } else {
+        dataset::export(&model, &rig, &mut renderer, args.count, &args.out)?
+    };
     println!(
         "wrote {} train + {} val images to {} in {:.1} s; objects per class: {}",
         summary.train,

@@ -6,6 +6,7 @@
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
+use super::family::{FAMILY_CLASSES, family_model, family_shot};
 use super::renderer::Renderer;
 use super::shot::{CameraRig, ObjectTruth, Shot, ShotError};
 use crate::cell::CellModel;
@@ -75,6 +76,14 @@ pub fn yolo_labels(truths: &[ObjectTruth], width_px: u32, height_px: u32) -> Str
     text
 }
 
+/// One image and its labels, ready to write.
+struct Sample {
+    image: image::RgbImage,
+    truths: Vec<ObjectTruth>,
+    /// The label metadata (`labels/SPLIT/STEM.json`), when the set records it.
+    meta: Option<serde_json::Value>,
+}
+
 /// Writes `count` shots of `model`'s scenario under `out`, rendered at `rig`'s resolution.
 pub fn export(
     model: &CellModel,
@@ -84,7 +93,67 @@ pub fn export(
     out: &Path,
 ) -> Result<DatasetSummary, DatasetError> {
     let scenario = model.scenario();
-    let names = class_names(scenario);
+    write_set(scenario, rig, &class_names(scenario), count, out, |index| {
+        let shot_error = |source: ShotError| DatasetError::Shot { index, source };
+        let shot = Shot::pick_station(model, rig, &scenario.sensor, index).map_err(shot_error)?;
+        let image = shot
+            .render(renderer)
+            .map_err(|e| shot_error(ShotError::Render(e)))?;
+        Ok(Sample {
+            image,
+            truths: shot.truth(scenario),
+            meta: None,
+        })
+    })
+}
+
+/// Writes `count` family shots ([`super::family`]) of `model`'s scenario under `out`, at `rig`'s
+/// resolution: classes `tube` and `foreign`, and beside each label file a JSON file with the
+/// shot's camera (tilt, its direction, distance, roll, field of view), its tubes (bore, outer
+/// diameter, height, finish) and every labelled object's truth, so evaluation can band by them.
+pub fn export_family(
+    model: &CellModel,
+    rig: &CameraRig,
+    renderer: &mut Renderer,
+    count: u64,
+    out: &Path,
+) -> Result<DatasetSummary, DatasetError> {
+    let model = &family_model(model).map_err(|e| DatasetError::Shot {
+        index: 0,
+        source: ShotError::Cell(e),
+    })?;
+    let scenario = model.scenario();
+    let names: Vec<String> = FAMILY_CLASSES.iter().map(|c| (*c).to_string()).collect();
+    write_set(scenario, rig, &names, count, out, |index| {
+        let shot_error = |source: ShotError| DatasetError::Shot { index, source };
+        let family = family_shot(model, rig, index).map_err(shot_error)?;
+        let image = family
+            .shot
+            .render(renderer)
+            .map_err(|e| shot_error(ShotError::Render(e)))?;
+        let truths = family.truth();
+        let meta = serde_json::json!({
+            "camera": family.camera,
+            "tubes": family.tubes,
+            "objects": truths,
+        });
+        Ok(Sample {
+            image,
+            truths,
+            meta: Some(meta),
+        })
+    })
+}
+
+/// Writes a set: `data.yaml` naming `names`, then `count` samples from `sample`.
+fn write_set(
+    scenario: &crate::scenario::Scenario,
+    rig: &CameraRig,
+    names: &[String],
+    count: u64,
+    out: &Path,
+    mut sample: impl FnMut(u64) -> Result<Sample, DatasetError>,
+) -> Result<DatasetSummary, DatasetError> {
     let io = |path: &Path| {
         let path = path.to_path_buf();
         move |e: std::io::Error| DatasetError::Io {
@@ -120,12 +189,11 @@ pub fn export(
         objects_per_class: names.iter().map(|n| (n.clone(), 0)).collect(),
     };
     for index in 0..count {
-        let shot_error = |source: ShotError| DatasetError::Shot { index, source };
-        let shot = Shot::pick_station(model, rig, &scenario.sensor, index).map_err(shot_error)?;
-        let image = shot
-            .render(renderer)
-            .map_err(|e| shot_error(ShotError::Render(e)))?;
-        let truths = shot.truth(scenario);
+        let Sample {
+            image,
+            truths,
+            meta,
+        } = sample(index)?;
         let split = if is_val(index) {
             summary.val += 1;
             "val"
@@ -147,9 +215,13 @@ pub fn export(
         let label_path = out.join("labels").join(split).join(format!("{stem}.txt"));
         std::fs::write(
             &label_path,
-            yolo_labels(&truths, rig.width_px, rig.height_px),
+            yolo_labels(&truths, image.width(), image.height()),
         )
         .map_err(io(&label_path))?;
+        if let Some(meta) = meta {
+            let meta_path = out.join("labels").join(split).join(format!("{stem}.json"));
+            std::fs::write(&meta_path, meta.to_string() + "\n").map_err(io(&meta_path))?;
+        }
     }
     Ok(summary)
 }

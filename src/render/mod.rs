@@ -12,12 +12,14 @@
 //!   salt-and-pepper), with the model's plain definition beside it as the reference its tests
 //!   compare against; [`shot`]: a staged pick-station shot with drawn realism and ground truth;
 //!   [`window`]: an area of interest of a shot read out at the sensor's full pitch;
-//!   [`dataset`]: an Ultralytics/YOLO dataset of such shots.
+//!   [`dataset`]: an Ultralytics/YOLO dataset of such shots, or of [`family`] shots drawn over
+//!   the whole tube family and camera envelope.
 
 mod cull;
 pub mod dataset;
 pub mod error;
 mod exposure;
+pub mod family;
 mod gpu_scene;
 pub mod material;
 pub mod mesh;

@@ -52,11 +52,18 @@ impl CameraRig {
     pub fn from_scenario(scenario: &Scenario) -> Result<Self, ShotError> {
         let camera = &scenario.camera;
         let (eye, target) = camera.eye_and_target(&scenario.conveyor);
-        let world_from_camera =
+        let looking =
             CameraCalibration::look_at(&Point3::from(eye), &Point3::from(target), &Vector3::x())
                 .ok_or_else(|| {
                     ShotError::Camera("the camera looks along the belt's axis".into())
                 })?;
+        // The roll turns the camera about its own z axis, the optical axis.
+        let world_from_camera = if camera.roll_deg == 0.0 {
+            looking
+        } else {
+            looking
+                * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), camera.roll_deg.to_radians())
+        };
         let [w, h] = camera.resolution_px;
         Ok(Self {
             calibration: CameraCalibration::from_fov(
@@ -359,7 +366,7 @@ fn draw_exposure(
 /// Inclusive pixel box of an object's projected mesh clipped to the image: each projected
 /// triangle is clipped to the image rectangle, so a box of an object cut by the image border fits
 /// the part that is in the image.
-fn silhouette_box(
+pub(crate) fn silhouette_box(
     camera: &CameraCalibration,
     object: &SceneObject,
     width_px: u32,

@@ -5,7 +5,8 @@ use serde::{Deserialize, Serialize};
 
 use super::ConveyorSection;
 
-/// The overhead camera: a pinhole without distortion, looking down at the pick station.
+/// The camera: a pinhole without distortion, looking down at the pick station from anywhere in
+/// the camera envelope ([`CAMERA_ENVELOPE`]).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct CameraSection {
@@ -17,6 +18,10 @@ pub struct CameraSection {
     pub position_m: Option<[f64; 3]>,
     /// Point the optical axis passes through, m (default: the belt's top at the photo-eye).
     pub look_at_m: Option<[f64; 3]>,
+    /// The camera turned about its optical axis, degrees: clockwise as seen from behind the
+    /// camera (its image x axis towards its y axis). At 0 the image's x axis is as close to the
+    /// world's +x, along the belt, as the view allows.
+    pub roll_deg: f64,
     /// Multisample anti-aliasing samples per pixel (1 or 4).
     pub msaa_samples: u32,
     /// Supersampling factor per axis on top of MSAA (1 to 4): renders larger and box-filters.
@@ -34,6 +39,7 @@ impl Default for CameraSection {
             horizontal_fov_deg: 44.0,
             position_m: None,
             look_at_m: None,
+            roll_deg: 0.0,
             msaa_samples: 4,
             supersample: 1,
             roi_scale: 2,
@@ -43,6 +49,59 @@ impl Default for CameraSection {
 
 /// Camera height above the belt when the scenario gives no position, m.
 pub const DEFAULT_CAMERA_HEIGHT_ABOVE_BELT_M: f64 = 0.58;
+
+/// The cameras the perception is built and trained for: where a `[camera]` may be and what it
+/// may be. Validation refuses a camera outside it; the detector's training data is drawn over it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CameraEnvelope {
+    /// Largest angle between the optical axis and straight down, degrees (in any direction).
+    pub max_tilt_deg: f64,
+    /// Distance from the camera centre to the pick station (the belt's top at the photo-eye),
+    /// least and most, m.
+    pub distance_m: [f64; 2],
+    /// Horizontal field of view, least and most, degrees.
+    pub horizontal_fov_deg: [f64; 2],
+    /// Smallest image, width and height, pixels.
+    pub min_resolution_px: [u32; 2],
+    /// Largest image, width and height, pixels.
+    pub max_resolution_px: [u32; 2],
+    /// Roll about the optical axis, least and most, degrees (any roll).
+    pub roll_deg: [f64; 2],
+}
+
+/// The camera envelope (issue 24): up to 35 degrees from vertical in any direction, 0.35-1.2 m
+/// from the pick station, any roll, a horizontal field of view of 35-80 degrees, 640 x 480 to
+/// 2048 x 1536 pixels.
+pub const CAMERA_ENVELOPE: CameraEnvelope = CameraEnvelope {
+    max_tilt_deg: 35.0,
+    distance_m: [0.35, 1.2],
+    horizontal_fov_deg: [35.0, 80.0],
+    min_resolution_px: [640, 480],
+    max_resolution_px: [2048, 1536],
+    roll_deg: [-180.0, 180.0],
+};
+
+impl std::fmt::Display for CameraEnvelope {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "the camera envelope: optical axis at most {} degrees from vertical, {}-{} m from the \
+             pick station, roll in [{}, {}] degrees, horizontal field of view {}-{} degrees, \
+             {} x {} to {} x {} pixels",
+            self.max_tilt_deg,
+            self.distance_m[0],
+            self.distance_m[1],
+            self.roll_deg[0],
+            self.roll_deg[1],
+            self.horizontal_fov_deg[0],
+            self.horizontal_fov_deg[1],
+            self.min_resolution_px[0],
+            self.min_resolution_px[1],
+            self.max_resolution_px[0],
+            self.max_resolution_px[1]
+        )
+    }
+}
 
 impl CameraSection {
     /// The camera centre and the point it looks at, world frame, m.
@@ -55,6 +114,31 @@ impl CameraSection {
             z + DEFAULT_CAMERA_HEIGHT_ABOVE_BELT_M,
         ]);
         (eye, self.look_at_m.unwrap_or(station))
+    }
+
+    /// The pick station the camera envelope is measured from: the belt's top at the photo-eye.
+    pub fn pick_station(conveyor: &ConveyorSection) -> [f64; 3] {
+        let [_, y, z] = conveyor.belt_center_m;
+        [conveyor.photo_eye_x_m, y, z]
+    }
+
+    /// The optical axis's angle from straight down, degrees, and the camera centre's distance
+    /// from the pick station, m.
+    pub fn tilt_and_distance(&self, conveyor: &ConveyorSection) -> (f64, f64) {
+        let (eye, target) = self.eye_and_target(conveyor);
+        let view = [target[0] - eye[0], target[1] - eye[1], target[2] - eye[2]];
+        let length = view.iter().map(|v| v * v).sum::<f64>().sqrt();
+        let tilt = if length > 0.0 {
+            (-view[2] / length).clamp(-1.0, 1.0).acos().to_degrees()
+        } else {
+            f64::NAN
+        };
+        let station = Self::pick_station(conveyor);
+        let distance = (0..3)
+            .map(|k| (eye[k] - station[k]).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        (tilt, distance)
     }
 }
 

@@ -17,7 +17,8 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 
 pub use camera_sections::{
-    CameraSection, DEFAULT_CAMERA_HEIGHT_ABOVE_BELT_M, LightSpec, LightingSection, SensorSection,
+    CAMERA_ENVELOPE, CameraEnvelope, CameraSection, DEFAULT_CAMERA_HEIGHT_ABOVE_BELT_M, LightSpec,
+    LightingSection, SensorSection,
 };
 pub use catalogue::{BinId, Catalogue, PartKind, PartTypeId, STEEL_DENSITY_KG_M3};
 pub use extends::EXTENDS_KEY;

@@ -16,7 +16,7 @@ use nalgebra::Point3;
 use super::bottle_fit::{BottleFitter, BottlePose};
 use super::type_reader::TypeReader;
 use crate::camera::CameraCalibration;
-use crate::detect::{Detection, Detector, DetectorModel};
+use crate::detect::{Detection, Detector, DetectorModel, FOREIGN_CLASSES, is_foreign_class};
 use crate::perception::calibration::{MeasureOnPlane, PlaneBore};
 use crate::perception::roundness::DEFAULT_MAX_UPR;
 use crate::perception::{Bore, BoreDetector, BoreDetectorParams};
@@ -28,6 +28,10 @@ use crate::scenario::{Scenario, TypeBy};
 const BOX_MARGIN: f64 = 0.15;
 /// A detector box counts as covering a point of the photo-eye's beam within this margin, px.
 const BEAM_MARGIN_PX: f64 = 2.0;
+/// Foreshortening (image roundness over radius of a round bore seen off the vertical) the bore
+/// finder's own circularity check already allows for: an overhead camera's parts, up to about
+/// 20 degrees off its axis, keep the finder as it is.
+const FORESHORTENING_ALLOWANCE: f64 = 0.07;
 /// A measured bore diameter further than this from the detected type's nominal one contradicts
 /// the detection, m (neighbouring types differ by at least 4 mm).
 const TYPE_DIAMETER_TOLERANCE_M: f64 = 0.002;
@@ -46,7 +50,9 @@ pub enum CameraPerceptionError {
     Camera(String),
     /// A scenario part type that the detector was not trained on.
     #[error(
-        "part_types: type {name:?} is not a class of the detector model {model} (classes: {classes})"
+        "perception.type_by: \"detector\" needs a model whose classes name the scenario's types, \
+         and type {name:?} is not a class of the detector model {model} (classes: {classes}); \
+         name the type by measurement (type_by = \"measurement\", the default)"
     )]
     UnknownType {
         /// The scenario's type name.
@@ -139,6 +145,7 @@ pub struct CameraPerception {
     renderers: Mutex<Vec<Renderer>>,
     detectors: Mutex<Vec<Detector>>,
     bore_detector: BoreDetector,
+    bore_params: BoreDetectorParams,
     /// The scenario type each detector class names (by measurement: the one of that name, or
     /// the bulkiest, until the target is measured).
     type_of_class: Vec<Option<usize>>,
@@ -189,11 +196,12 @@ impl CameraPerception {
         let type_reader = TypeReader::new(scenario);
         let mut type_of_class = vec![None; classes.len()];
         if type_reader.type_by() == TypeBy::Measurement {
-            // The detector only has to find a tube: any of its classes but the bottle. Parts
-            // other than the target are not measured: as obstacles they take the type the class
-            // names where it is one of the scenario's, else the bulkiest (the larger obstacle).
+            // The detector only has to find a tube (the shipped one's `tube` class; any class
+            // but the foreign object's in a model trained per catalogue). Parts other than the
+            // target are not measured: as obstacles they take the type the class names where it
+            // is one of the scenario's, else the bulkiest (the larger obstacle).
             for (class, name) in classes.iter().enumerate() {
-                if name != "bottle" {
+                if !is_foreign_class(name) {
                     let named = scenario.part_types.iter().position(|t| &t.name == name);
                     type_of_class[class] = Some(named.unwrap_or(type_reader.bulkiest()));
                 }
@@ -216,6 +224,8 @@ impl CameraPerception {
             type_of_class[class] = Some(type_index);
         }
         let bottle_fitter = BottleFitter::new(rig.calibration, &scenario.bottle);
+        let bore_params =
+            BoreDetectorParams::default().at_scale(f64::from(scenario.camera.roi_scale));
         Ok(Self {
             rig,
             roi_scale: scenario.camera.roi_scale,
@@ -223,14 +233,38 @@ impl CameraPerception {
             model,
             renderers: Mutex::new(vec![renderer]),
             detectors: Mutex::new(vec![detector]),
-            bore_detector: BoreDetector::new(
-                BoreDetectorParams::default().at_scale(f64::from(scenario.camera.roi_scale)),
-            ),
+            bore_detector: BoreDetector::new(bore_params),
+            bore_params,
             type_of_class,
             type_reader,
-            bottle_class: class_index("bottle"),
+            bottle_class: FOREIGN_CLASSES.iter().find_map(|name| class_index(name)),
             bottle_fitter,
         })
+    }
+
+    /// The bore finder for a part whose box is `box_px`: the shared one, its circularity check
+    /// widened by the foreshortening of an end face seen at the part's angle from the vertical
+    /// (a round bore images as an ellipse of axis ratio `cos(angle)`; the plane measurement
+    /// undoes it, the image check must let it through).
+    fn bore_detector_at(
+        &self,
+        box_px: &[f64; 4],
+        belt_top_z_m: f64,
+    ) -> std::borrow::Cow<'_, BoreDetector> {
+        let [x0, y0, x1, y1] = *box_px;
+        let c = &self.rig.calibration;
+        let Ok(on_belt) = c.pixel_to_height((x0 + x1) / 2.0, (y0 + y1) / 2.0, belt_top_z_m) else {
+            return std::borrow::Cow::Borrowed(&self.bore_detector);
+        };
+        let ray = on_belt - c.origin_in_world();
+        let cos = (-ray.z / ray.norm()).clamp(0.0, 1.0);
+        let foreshortening = 2.0 * (1.0 - cos) / (1.0 + cos);
+        if foreshortening <= FORESHORTENING_ALLOWANCE {
+            return std::borrow::Cow::Borrowed(&self.bore_detector);
+        }
+        let mut params = self.bore_params;
+        params.max_roundness_ratio += foreshortening - FORESHORTENING_ALLOWANCE;
+        std::borrow::Cow::Owned(BoreDetector::new(params))
     }
 
     /// The calibrated camera.
@@ -395,7 +429,8 @@ impl CameraPerception {
                     let window_image = shot.render_window(renderer, &gpu, &window)?;
                     window_render_ms += rendered.elapsed().as_secs_f64() * 1e3;
                     let gray = image::imageops::grayscale(&window_image);
-                    find_in_window(&self.bore_detector, &gray, &window, &box_px)
+                    let bore_detector = self.bore_detector_at(&box_px, belt_top_z_m);
+                    find_in_window(&bore_detector, &gray, &window, &box_px)
                         .map(|bore| (bore, window))
                 }
                 None => None,
