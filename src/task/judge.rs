@@ -108,6 +108,27 @@ pub fn judge_cycle(
     None
 }
 
+/// The failure of a cycle whose part was let through to the collector, if any: the
+/// controller's own failure, a lifted bottle, or the robot's touch on one. Bottles the belt
+/// carried on with the part do not count as disturbed.
+pub fn judge_pass(controller: Result<(), Failure>, evidence: &CycleEvidence) -> Option<Failure> {
+    if let Err(failure) = controller {
+        return Some(failure);
+    }
+    if evidence.bottle_lifted {
+        return Some(Failure::new(
+            FailureReason::DistractorPicked,
+            "the bottle was lifted",
+        ));
+    }
+    evidence.touch_phase.map(|phase| {
+        Failure::new(
+            FailureReason::DistractorTouched,
+            format!("robot touched the bottle during {phase}"),
+        )
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
