@@ -307,4 +307,30 @@ mod tests {
         };
         assert_eq!(failure.reason, FailureReason::Slipped);
     }
+
+    #[test]
+    fn a_part_let_through_fails_only_on_the_robots_own_touch() {
+        let a24 = part("axle_a24", 0.1);
+        // The belt carried the bottles far with the part: not a disturbance.
+        let carried = CycleEvidence {
+            bottle_displacement_m: 1.2,
+            ..clean(&a24, Some("reject"))
+        };
+        assert_eq!(judge_pass(Ok(()), &carried), None);
+        let touched = CycleEvidence {
+            touch_phase: Some(Phase::Plan),
+            ..carried.clone()
+        };
+        let failure = judge_pass(Ok(()), &touched).map(|f| f.reason);
+        assert_eq!(failure, Some(FailureReason::DistractorTouched));
+        let lifted = CycleEvidence {
+            bottle_lifted: true,
+            ..carried.clone()
+        };
+        let failure = judge_pass(Ok(()), &lifted).map(|f| f.reason);
+        assert_eq!(failure, Some(FailureReason::DistractorPicked));
+        let dropped = Failure::new(FailureReason::Dropped, "not in the collector");
+        let failure = judge_pass(Err(dropped), &carried).map(|f| f.reason);
+        assert_eq!(failure, Some(FailureReason::Dropped));
+    }
 }
