@@ -210,8 +210,8 @@ fn load_in_chromium(page: &Path, screenshot: &Path) -> Value {
 #[test]
 fn the_page_loads_in_headless_chromium_with_every_plot_and_frame_drawn() {
     // Five trials of clutter (2-3 bottles, one 0-10 mm from the part) on its seed: trials 0-2
-    // refused by the planner (no grasp clear of the bottles), trials 3-4 sorted, so the page has
-    // decisions, failures and their frames.
+    // refused by the planner (no grasp clear of the bottles) and let through to the collector,
+    // trials 3-4 sorted, so the page has decisions, parts let through and their frames.
     let dir = out_dir("browser");
     run(&[
         "run",
@@ -223,11 +223,11 @@ fn the_page_loads_in_headless_chromium_with_every_plot_and_frame_drawn() {
         "--out",
         path_str(&dir),
     ]);
-    let failed = records(&dir)
+    let shown = records(&dir)
         .iter()
-        .filter(|r| r["outcome"] == "failure")
+        .filter(|r| r["outcome"] != "success")
         .count();
-    assert!(failed >= 1, "no failed trial: pick another seed");
+    assert!(shown >= 1, "no failed or passed trial: pick another seed");
     let frames = images(&dir).len();
     assert!(frames >= 1, "no camera frame saved");
 

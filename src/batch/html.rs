@@ -216,7 +216,7 @@ impl HtmlPage {
     fn summary_table(&self) -> String {
         let mut out = String::from(
             "<table><tr><th>#</th><th>batch</th><th>successes</th><th>rate</th>\
-             <th>Wilson 95 %</th><th>strict</th><th>mean cycle, s</th><th>failures</th>\
+             <th>Wilson 95 %</th><th>strict</th><th>passed</th><th>safe</th><th>removals</th><th>mean cycle, s</th><th>failures</th>\
              <th>gate</th></tr>\n",
         );
         for (
@@ -247,6 +247,7 @@ impl HtmlPage {
                 out,
                 "<tr><td class=\"n\">{i}</td><td>{}</td><td class=\"n\">{}/{}</td>\
                  <td class=\"n\">{:.3}</td><td>[{:.3}, {:.3}]</td><td class=\"n\">{}</td>\
+                 <td class=\"n\">{}</td><td class=\"n\">{:.3}</td><td class=\"n\">{}</td>\
                  <td class=\"n\">{cycle}</td><td>{}</td><td>{gate}</td></tr>",
                 xml_escape(label),
                 row.successes,
@@ -255,6 +256,9 @@ impl HtmlPage {
                 row.wilson95[0],
                 row.wilson95[1],
                 row.strict_successes,
+                row.passed,
+                row.safe_rate,
+                row.removals,
                 xml_escape(&failures.join(", ")),
             );
         }

@@ -15,7 +15,7 @@ use super::batch_listing::{BOTTLE, NOT_DETECTED};
 use super::html::HtmlError;
 use super::trial_images::trial_image_path;
 use super::trial_summary::TrialSummary;
-use super::{AcceptConfusion, BatchReport, Perception, xml_escape};
+use super::{AcceptConfusion, BatchReport, Outcome, Perception, xml_escape};
 
 /// The sorter's decisions against the truth, over every batch of a page.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -171,7 +171,8 @@ pub struct TrialCard {
     pub trial: u32,
     /// The trial's seed.
     pub seed: u64,
-    /// The failure reason, or `misjudged` for a success with a decision against the truth.
+    /// The failure reason, `passed` for a part let through, or `misjudged` for a success with a
+    /// decision against the truth.
     pub reason: String,
     /// The record's detail.
     pub detail: String,
@@ -192,7 +193,10 @@ pub fn trial_card(
     let Some(judgement) = &trial.judgement else {
         return Ok(None);
     };
-    let reason = trial.failure_reason().unwrap_or("misjudged");
+    let reason = match trial.outcome {
+        Outcome::Passed => "passed",
+        _ => trial.failure_reason().unwrap_or("misjudged"),
+    };
     let image = match perception {
         Perception::Oracle => CardImage::Oracle,
         Perception::Camera => {

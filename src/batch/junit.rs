@@ -2,7 +2,7 @@
 
 use std::fmt::Write as _;
 
-use super::BatchReport;
+use super::{BatchReport, Outcome};
 
 /// Text made safe for XML 1.0 content and attribute values.
 ///
@@ -40,7 +40,9 @@ pub fn testcase_name(index: u32) -> String {
 /// wall-clock seconds; a failed trial carries `<failure message="reason" type="reason">detail`.
 pub fn junit_xml(report: &BatchReport) -> String {
     let suite = xml_escape(&report.scenario);
-    let failures = report.trials - report.successes;
+    // A part let through as unpickable is neither sorted nor failed: JUnit's `skipped`.
+    let skipped = report.passed;
+    let failures = report.trials.saturating_sub(report.successes + skipped);
     let trials = &report.listing.trials;
     let total_s: f64 = trials.iter().map(|t| t.wall_ms).sum::<f64>() / 1000.0;
     let mut out = String::new();
@@ -53,7 +55,7 @@ pub fn junit_xml(report: &BatchReport) -> String {
     );
     let _ = writeln!(
         out,
-        r#"  <testsuite name="{suite}" tests="{}" failures="{failures}" errors="0" skipped="0" time="{total_s:.3}">"#,
+        r#"  <testsuite name="{suite}" tests="{}" failures="{failures}" errors="0" skipped="{skipped}" time="{total_s:.3}">"#,
         report.trials
     );
     let _ = writeln!(out, "    <properties>");
@@ -77,6 +79,16 @@ pub fn junit_xml(report: &BatchReport) -> String {
     for trial in trials {
         let name = testcase_name(trial.trial);
         let time_s = trial.wall_ms / 1000.0;
+        if trial.outcome == Outcome::Passed {
+            let detail = xml_escape(trial.detail.as_deref().unwrap_or(""));
+            let _ = writeln!(
+                out,
+                r#"    <testcase name="{name}" classname="{suite}" time="{time_s:.3}">"#
+            );
+            let _ = writeln!(out, r#"      <skipped message="passed">{detail}</skipped>"#);
+            let _ = writeln!(out, "    </testcase>");
+            continue;
+        }
         let Some(reason) = trial.failure_reason() else {
             let _ = writeln!(
                 out,

@@ -249,6 +249,23 @@ pub struct BatchReport {
     /// `strict_successes / trials`.
     #[serde(default)]
     pub strict_success_rate: f64,
+    /// Trials whose part was let through to the collector as unpickable (neither a success
+    /// nor a failure).
+    #[serde(default)]
+    pub passed: u32,
+    /// `passed / trials`.
+    #[serde(default)]
+    pub passed_rate: f64,
+    /// Trials that ended safe: sorted or passed, with no collision, nothing dropped and no
+    /// bottle touched except by a planned removal.
+    #[serde(default)]
+    pub safe: u32,
+    /// `safe / trials`.
+    #[serde(default)]
+    pub safe_rate: f64,
+    /// Bottles removed into the waste bin, over all trials.
+    #[serde(default)]
+    pub removals: u32,
     /// Failure reason -> count.
     pub failures: BTreeMap<String, u32>,
     /// Trials in which the bottle was picked.
@@ -311,6 +328,11 @@ fn error_stats(mut errors: Vec<f64>) -> Option<ErrorStats> {
         p95_mm: percentile(&errors, 0.95)?,
         max_mm: *errors.last()?,
     })
+}
+
+/// Whether `record` ended safe: sorted or let through, the robot clear of every bottle.
+fn ended_safe(record: &TrialRecord) -> bool {
+    matches!(record.outcome, Outcome::Success | Outcome::Passed) && !record.distractor_touched
 }
 
 /// Whether `record` succeeded with every part in the bin its truth calls for.
@@ -376,6 +398,21 @@ impl BatchReport {
         } else {
             f64::from(strict_successes) / f64::from(trials)
         };
+        let rate = |n: u32| {
+            if trials == 0 {
+                0.0
+            } else {
+                f64::from(n) / f64::from(trials)
+            }
+        };
+        let passed = count(
+            records
+                .iter()
+                .filter(|r| r.outcome == Outcome::Passed)
+                .count(),
+        );
+        let safe = count(records.iter().filter(|r| ended_safe(r)).count());
+        let removals = records.iter().map(|r| r.removals).sum();
         let mut failures = BTreeMap::new();
         for record in records.iter().filter(|r| r.outcome == Outcome::Failure) {
             let reason = record.failure.map_or("unspecified", |f| f.as_str());
@@ -475,6 +512,11 @@ impl BatchReport {
             wilson95: wilson_interval(successes, trials, Z95),
             strict_successes,
             strict_success_rate,
+            passed,
+            passed_rate: rate(passed),
+            safe,
+            safe_rate: rate(safe),
+            removals,
             failures,
             distractor_picks: count(records.iter().filter(|r| r.distractor_picked).count()),
             distractor_touches: count(records.iter().filter(|r| r.distractor_touched).count()),

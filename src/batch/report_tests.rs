@@ -177,3 +177,49 @@ fn faults_are_tallied_per_kind_and_absent_from_a_report_without_them() {
     // Suite and sweep rows carry the tally too.
     assert_eq!(BatchRow::from_report(&report, ".").faults, report.faults);
 }
+
+#[test]
+fn passed_and_removals_are_counted_apart_from_successes_and_failures() {
+    let meta = ReportMeta {
+        scenario: "s".into(),
+        seed: 1,
+        perception: Perception::Camera,
+        scenario_trials: 5,
+        shard: None,
+        interrupted: false,
+        min_success: Some(0.5),
+    };
+    let mut records: Vec<_> = (0..5).map(|i| record(i, i < 2)).collect();
+    // Trial 1 sorted its part after removing two bottles.
+    records[1].removals = 2;
+    // Trials 2 and 3 let their part through; trial 3's robot touched a bottle on the way.
+    for r in &mut records[2..4] {
+        r.outcome = Outcome::Passed;
+        r.failure = None;
+        r.detail = Some("unpickable: no grasp clear".into());
+    }
+    records[3].distractor_touched = true;
+    let report = BatchReport::from_records(&meta, &records);
+    assert_eq!((report.trials, report.successes, report.passed), (5, 2, 2));
+    assert!((report.passed_rate - 0.4).abs() < 1e-12);
+    // Safe: the two sorted and the one passed untouched.
+    assert_eq!(report.safe, 3);
+    assert!((report.safe_rate - 0.6).abs() < 1e-12);
+    assert_eq!(report.removals, 2);
+    // Passed trials are not failures, and the gate stays on success.
+    assert_eq!(report.failures.values().sum::<u32>(), 1);
+    assert!((report.success_rate - 0.4).abs() < 1e-12);
+    assert!(report.gate.as_ref().is_some_and(|g| !g.passed));
+    let junit = super::junit::junit_xml(&report);
+    assert!(
+        junit.contains(r#"tests="5" failures="1" errors="0" skipped="2""#),
+        "{junit}"
+    );
+    assert_eq!(junit.matches("<skipped message=\"passed\">").count(), 2);
+    let json = serde_json::to_value(&report).expect("json");
+    for key in ["passed", "passed_rate", "safe", "safe_rate", "removals"] {
+        assert!(json.get(key).is_some(), "report.json lacks {key}");
+    }
+    let table = report.summary_table();
+    assert!(table.contains("safe rate"), "{table}");
+}

@@ -35,6 +35,15 @@ pub struct BatchRow {
     pub strict_successes: u32,
     /// `strict_successes / trials`.
     pub strict_success_rate: f64,
+    /// Trials whose part was let through to the collector as unpickable.
+    #[serde(default)]
+    pub passed: u32,
+    /// Trials sorted or passed with no bottle touched, over trials.
+    #[serde(default)]
+    pub safe_rate: f64,
+    /// Bottles removed into the waste bin.
+    #[serde(default)]
+    pub removals: u32,
     /// Trials in which the robot touched a bottle.
     pub distractor_touches: u32,
     /// Simulated cycle time of the successful trials; `null` when none succeeded.
@@ -67,6 +76,9 @@ impl BatchRow {
             failures: report.failures.clone(),
             strict_successes: report.strict_successes,
             strict_success_rate: report.strict_success_rate,
+            passed: report.passed,
+            safe_rate: report.safe_rate,
+            removals: report.removals,
             distractor_touches: report.distractor_touches,
             cycle_time_s: report.cycle_time_s.clone(),
             parts_per_minute: report.parts_per_minute,

@@ -47,6 +47,21 @@ impl BatchReport {
             100.0 * self.wilson95[0],
             100.0 * self.wilson95[1]
         );
+        let _ = writeln!(
+            out,
+            "{:<22}{:>8}  {:.1}% let through as unpickable; removals {}",
+            "passed",
+            self.passed,
+            100.0 * self.passed_rate,
+            self.removals
+        );
+        let _ = writeln!(
+            out,
+            "{:<22}{:>7.1}%  ({} sorted or passed, no bottle touched)",
+            "safe rate",
+            100.0 * self.safe_rate,
+            self.safe
+        );
         let _ = writeln!(out, "failures by reason");
         if self.failures.is_empty() {
             let _ = writeln!(out, "  {:<20}{:>8}", "(none)", 0);

@@ -44,19 +44,20 @@ pub fn decision_misjudged(part: &PartRecord, decision: &DecisionRecord) -> bool 
     decision.accept != part.truly_acceptable || decision.detected_type != part.part_type
 }
 
-/// The first part of `record` that failed or was misjudged, as an index into its stream's
+/// The first part of `record` that failed, was let through or was misjudged, as an index into its stream's
 /// parts (`Some(0)` for a single-part trial's part); `None` when there is none.
 fn first_bad_part(record: &TrialRecord) -> Option<usize> {
     record.parts().iter().position(|p| {
-        p.outcome == Outcome::Failure || p.decision.is_some_and(|d| decision_misjudged(p.part, d))
+        p.outcome != Outcome::Success || p.decision.is_some_and(|d| decision_misjudged(p.part, d))
     })
 }
 
-/// Whether the report shows `record` with its camera frame: it failed, or a decision in it
+/// Whether the report shows `record` with its camera frame: it failed, its part was let
+/// through as unpickable (the frame shows why), or a decision in it
 /// disagrees with the truth (accept/reject or type), even where the uncertainty band let the
 /// part's bin count as right.
 pub fn wants_image(record: &TrialRecord) -> bool {
-    record.outcome == Outcome::Failure || first_bad_part(record).is_some()
+    record.outcome != Outcome::Success || first_bad_part(record).is_some()
 }
 
 /// Saves the frames of the failed and misjudged trials of a batch into `DIR/images/`.

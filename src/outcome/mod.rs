@@ -13,7 +13,7 @@ pub use motion_record::MotionRecord;
 pub use phase::{PHASE_COUNT, Phase, PhaseSeconds};
 pub use trial_record::{
     DecisionRecord, FailureReason, GraspRecord, Misidentification, Outcome, PartOutcome,
-    PartRecord, Perception, StreamPartRecord, StreamRecord, TrialRecord, TrialTiming,
+    PartRecord, PassedRecord, Perception, StreamPartRecord, StreamRecord, TrialRecord, TrialTiming,
 };
 
 /// Runs one trial of a scenario. Implementations must be deterministic in `(index, seed)`.

@@ -22,6 +22,9 @@ pub enum Outcome {
     Success,
     /// Anything else; see the failure reason.
     Failure,
+    /// The part was judged unpickable (no safe grasp) and the belt carried it, untouched, into
+    /// the collector at its end: safe, but not sorted.
+    Passed,
 }
 
 impl Outcome {
@@ -29,6 +32,30 @@ impl Outcome {
     pub fn from_failed(failed: bool) -> Self {
         if failed { Self::Failure } else { Self::Success }
     }
+
+    /// The outcome's name as written in reports.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::Success => "success",
+            Self::Failure => "failure",
+            Self::Passed => "passed",
+        }
+    }
+}
+
+/// A part let through as unpickable: why the cell would not pick it, and where it ended.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PassedRecord {
+    /// The planner's refusal that made the part unpickable.
+    pub reason: FailureReason,
+    /// The refusal's detail.
+    pub detail: String,
+    /// The collector the belt carried the part into.
+    pub collector: String,
+}
+
+fn is_zero(n: &u32) -> bool {
+    *n == 0
 }
 
 /// Every way a trial can fail.
@@ -193,6 +220,14 @@ pub struct TrialRecord {
     /// the controller did and whether the cell recovered (absent when none struck).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub faults: Vec<FaultRecord>,
+    /// Bottles the cell removed from the belt into the waste bin to free the part (absent when
+    /// none).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub removals: u32,
+    /// Why the part was let through to the collector, when it was (the outcome is then
+    /// `passed`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub passed: Option<PassedRecord>,
 }
 
 /// The grasp the planner chose for a part.
@@ -337,6 +372,8 @@ impl TrialRecord {
             stream: None,
             grasp: None,
             faults: Vec::new(),
+            removals: 0,
+            passed: None,
         }
     }
 }

@@ -325,6 +325,10 @@ impl TrialObserver for TrialRecording {
         self.set_sim_time(outcome.sim_time_s);
         let (level, verdict) = match outcome.outcome {
             Outcome::Success => (TextLogLevel::INFO, "success".to_string()),
+            Outcome::Passed => (
+                TextLogLevel::WARN,
+                format!("passed: {}", outcome.detail.as_deref().unwrap_or("")),
+            ),
             Outcome::Failure => (
                 TextLogLevel::ERROR,
                 format!(

@@ -58,6 +58,8 @@ pub struct Catalogue {
     parts: Vec<PartKind>,
     bin_names: Vec<String>,
     reject: Option<BinId>,
+    waste: Option<BinId>,
+    collector: Option<BinId>,
 }
 
 impl Catalogue {
@@ -87,6 +89,8 @@ impl Catalogue {
             parts,
             bin_names: scenario.bins.iter().map(|b| b.name.clone()).collect(),
             reject: scenario.bins.iter().position(|b| b.reject).map(BinId),
+            waste: scenario.bins.iter().position(|b| b.waste).map(BinId),
+            collector: scenario.bins.iter().position(|b| b.collector).map(BinId),
         }
     }
 
@@ -111,6 +115,16 @@ impl Catalogue {
     /// The name of bin `id`.
     pub fn bin_name(&self, id: BinId) -> &str {
         &self.bin_names[id.0]
+    }
+
+    /// The bin that takes removed foreign objects (`waste = true`), if the scenario has one.
+    pub fn waste_bin(&self) -> Option<BinId> {
+        self.waste
+    }
+
+    /// The collector at the belt's end (`collector = true`), if the scenario has one.
+    pub fn collector_bin(&self) -> Option<BinId> {
+        self.collector
     }
 
     /// The bin a part of type `id` goes to when accepted or rejected, if the scenario has one.

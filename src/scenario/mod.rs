@@ -418,6 +418,19 @@ pub struct Bin {
     /// Whether this is the reject bin.
     #[serde(default)]
     pub reject: bool,
+    /// Whether this bin takes the foreign objects (bottles) the cell removes from the belt to
+    /// free a blocked part; at most one, reachable, accepting no type.
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub waste: bool,
+    /// Whether this bin is the collector at the belt's downstream end that catches what the
+    /// belt carries off it (items let through as unpickable); at most one, under the belt's
+    /// end, accepting no type.
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub collector: bool,
+}
+
+fn is_false(flag: &bool) -> bool {
+    !*flag
 }
 
 fn wall_height() -> f64 {

@@ -456,8 +456,29 @@ impl Scenario {
             .iter()
             .map(|p| p.height_mm / 1000.0)
             .fold(0.0, f64::max);
+        for (flag, count) in [
+            ("waste", self.bins.iter().filter(|b| b.waste).count()),
+            (
+                "collector",
+                self.bins.iter().filter(|b| b.collector).count(),
+            ),
+        ] {
+            if count > 1 {
+                return Err(c.fail("bins", format!("at most one {flag} bin, got {count}")));
+            }
+        }
         for (i, bin) in self.bins.iter().enumerate() {
             let key = |field: &str| format!("bins[{i}].{field}");
+            let roles = [bin.reject, bin.waste, bin.collector];
+            if roles.iter().filter(|r| **r).count() > 1 {
+                return Err(c.fail(
+                    key("waste"),
+                    "a bin is at most one of reject, waste and collector",
+                ));
+            }
+            if (bin.waste || bin.collector) && !bin.accepts.is_empty() {
+                return Err(c.fail(key("accepts"), "a waste bin or collector accepts no type"));
+            }
             if bin.name.trim().is_empty() || !names.insert(bin.name.as_str()) {
                 return Err(c.fail(key("name"), "must be a unique, non-empty name"));
             }
@@ -477,6 +498,11 @@ impl Scenario {
                     key("accepts"),
                     format!("names unknown part type `{unknown}`"),
                 ));
+            }
+            if bin.collector {
+                // Under the belt's end, out of the arm's way: no place pose to reach.
+                self.validate_collector(c, &key, bin)?;
+                continue;
             }
             // The place pose: gripper pointing down, the tallest part's bottom 2 cm above the rim.
             let base = self.robot.base_xyz_m;
@@ -511,6 +537,46 @@ impl Scenario {
                     ),
                 ));
             }
+        }
+        Ok(())
+    }
+
+    /// A collector must catch what runs off the belt's downstream (+x) end: its opening starts
+    /// at most 20 mm past the end and reaches 100 mm beyond it, spans the belt's width, and its
+    /// rim lies at least 20 mm below the belt's top.
+    fn validate_collector(
+        &self,
+        c: &Checker,
+        key: &dyn Fn(&str) -> String,
+        bin: &super::Bin,
+    ) -> Result<(), ScenarioError> {
+        let belt = &self.conveyor;
+        let end_x = belt.belt_center_m[0] + belt.length_m / 2.0;
+        let [cx, cy, floor_z] = bin.floor_center_m;
+        let (near_x, far_x) = (cx - bin.size_m[0] / 2.0, cx + bin.size_m[0] / 2.0);
+        if near_x > end_x + 0.02 || far_x < end_x + 0.1 {
+            return Err(c.fail(
+                key("floor_center_m"),
+                format!(
+                    "a collector must sit at the belt's downstream end: its opening spans x = \
+                     {near_x:.3}..{far_x:.3} m, the belt ends at x = {end_x:.3} m (the opening \
+                     must start within 20 mm past the end and reach 100 mm beyond it)"
+                ),
+            ));
+        }
+        let half_width = belt.width_m / 2.0;
+        let (belt_y, half_y) = (belt.belt_center_m[1], bin.size_m[1] / 2.0);
+        if cy - half_y > belt_y - half_width || cy + half_y < belt_y + half_width {
+            return Err(c.fail(
+                key("size_m[1]"),
+                "a collector's opening must span the belt's whole width",
+            ));
+        }
+        if floor_z + bin.wall_height_m > belt.belt_center_m[2] - 0.02 {
+            return Err(c.fail(
+                key("floor_center_m[2]"),
+                "a collector's rim must lie at least 20 mm below the belt's top",
+            ));
         }
         Ok(())
     }

@@ -108,6 +108,27 @@ pub fn judge_cycle(
     None
 }
 
+/// The failure of a cycle whose part was let through to the collector, if any: the
+/// controller's own failure, a lifted bottle, or the robot's touch on one. Bottles the belt
+/// carried on with the part do not count as disturbed.
+pub fn judge_pass(controller: Result<(), Failure>, evidence: &CycleEvidence) -> Option<Failure> {
+    if let Err(failure) = controller {
+        return Some(failure);
+    }
+    if evidence.bottle_lifted {
+        return Some(Failure::new(
+            FailureReason::DistractorPicked,
+            "the bottle was lifted",
+        ));
+    }
+    evidence.touch_phase.map(|phase| {
+        Failure::new(
+            FailureReason::DistractorTouched,
+            format!("robot touched the bottle during {phase}"),
+        )
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -285,5 +306,31 @@ mod tests {
             panic!("a failed cycle passed");
         };
         assert_eq!(failure.reason, FailureReason::Slipped);
+    }
+
+    #[test]
+    fn a_part_let_through_fails_only_on_the_robots_own_touch() {
+        let a24 = part("axle_a24", 0.1);
+        // The belt carried the bottles far with the part: not a disturbance.
+        let carried = CycleEvidence {
+            bottle_displacement_m: 1.2,
+            ..clean(&a24, Some("reject"))
+        };
+        assert_eq!(judge_pass(Ok(()), &carried), None);
+        let touched = CycleEvidence {
+            touch_phase: Some(Phase::Plan),
+            ..carried.clone()
+        };
+        let failure = judge_pass(Ok(()), &touched).map(|f| f.reason);
+        assert_eq!(failure, Some(FailureReason::DistractorTouched));
+        let lifted = CycleEvidence {
+            bottle_lifted: true,
+            ..carried.clone()
+        };
+        let failure = judge_pass(Ok(()), &lifted).map(|f| f.reason);
+        assert_eq!(failure, Some(FailureReason::DistractorPicked));
+        let dropped = Failure::new(FailureReason::Dropped, "not in the collector");
+        let failure = judge_pass(Err(dropped), &carried).map(|f| f.reason);
+        assert_eq!(failure, Some(FailureReason::Dropped));
     }
 }

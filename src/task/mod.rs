@@ -6,6 +6,7 @@ mod cell_data;
 mod fault_handling;
 mod feeder;
 pub mod judge;
+mod let_through;
 mod motion_stages;
 mod observer;
 mod perceive;

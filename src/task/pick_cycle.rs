@@ -10,7 +10,7 @@ use super::sorter::Sorter;
 use crate::cell::CellModel;
 use crate::control::HoldMonitor;
 use crate::outcome::{
-    DecisionRecord, Failure, FailureReason, GraspRecord, PartRecord, Phase, fail,
+    DecisionRecord, Failure, FailureReason, GraspRecord, PartRecord, PassedRecord, Phase, fail,
 };
 use crate::planning::{JointTrajectory, Payload, PickPlan, PlacePlan};
 use crate::scenario::{BinId, PartTypeId, UNIDENTIFIED};
@@ -39,6 +39,8 @@ pub(crate) struct Cycle {
     pub(crate) displacement_m: f64,
     pub(crate) cycle_time_s: f64,
     pub(crate) grasp: Option<GraspRecord>,
+    /// Why the part was let through to the collector, when it was.
+    pub(crate) passed: Option<PassedRecord>,
 }
 
 /// What the cycle carries from one phase to the next.
@@ -71,6 +73,7 @@ impl Sorter<'_> {
             displacement_m: 0.0,
             cycle_time_s: 0.0,
             grasp: None,
+            passed: None,
         }
     }
 
@@ -88,6 +91,8 @@ impl Sorter<'_> {
         let part = self.part_record(model, data);
         let (mut decision, mut grasp) = (None, None);
         let result = self.run_cycle(model, data, seen, &mut decision, &mut grasp);
+        let (result, let_through) = self.let_through_if_refused(model, data, result);
+        let (passed, moved_before_m) = let_through.unzip();
         let placed_bin_id = data.bin_holding(self.current);
         let evidence = CycleEvidence {
             part_type: PartTypeId(data.cell.items.parts()[self.current].instance.type_index),
@@ -96,9 +101,20 @@ impl Sorter<'_> {
             touch_phase: data.touch_phase,
             bottle_displacement_m: data.bottle_displacement_m(),
         };
-        let failure = judge::judge_cycle(scenario, catalogue, &part, result, &evidence);
-        let touched = evidence.bottle_disturbed(scenario);
-        let (picked, displacement_m) = (evidence.bottle_lifted, evidence.bottle_displacement_m);
+        let (failure, touched) = match &passed {
+            // The belt carried the bottles on with the part: only the robot's touch counts.
+            Some(_) => (
+                judge::judge_pass(result, &evidence),
+                evidence.touch_phase.is_some(),
+            ),
+            None => (
+                judge::judge_cycle(scenario, catalogue, &part, result, &evidence),
+                evidence.bottle_disturbed(scenario),
+            ),
+        };
+        let picked = evidence.bottle_lifted;
+        // A part let through: the bottles' move before the belt carried them on with it.
+        let displacement_m = moved_before_m.unwrap_or(evidence.bottle_displacement_m);
         Cycle {
             part,
             decision,
@@ -112,6 +128,7 @@ impl Sorter<'_> {
                 .pick_time_s
                 .map_or(0.0, |t| data.cell.world.time_s() - t),
             grasp,
+            passed,
         }
     }
 

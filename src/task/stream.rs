@@ -45,10 +45,14 @@ impl Sorter<'_> {
         let faults = data.take_fault_records(cycle.failure.is_none());
         let (failure, detail) = split(cycle.failure);
         let sim_time_s = data.cell.world.time_s();
+        let (outcome, detail) = match (&cycle.passed, failure) {
+            (Some(passed), None) => (Outcome::Passed, Some(passed.detail.clone())),
+            _ => (Outcome::from_failed(failure.is_some()), detail),
+        };
         TrialRecord {
             trial: index,
             seed: data.seed,
-            outcome: Outcome::from_failed(failure.is_some()),
+            outcome,
             failure,
             detail,
             part: Some(cycle.part),
@@ -64,6 +68,8 @@ impl Sorter<'_> {
             stream: None,
             grasp: cycle.grasp,
             faults,
+            removals: 0,
+            passed: cycle.passed,
         }
     }
 
@@ -326,6 +332,8 @@ impl Sorter<'_> {
             }),
             grasp: None,
             faults,
+            removals: 0,
+            passed: None,
         }
     }
 }
