@@ -1,0 +1,135 @@
+"""The Gymnasium environment: Gymnasium's own checker on paper_50 in both perception modes,
+deterministic resets, the judge's info at the episode's end (and no truth before it in camera
+mode), and bad calls raising exceptions that name the argument and the reason."""
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+import twincell
+
+from conftest import PAPER_50
+
+
+@pytest.fixture(scope="module")
+def oracle():
+    env = twincell.make_env(PAPER_50, perception="oracle")
+    yield env
+    env.close()
+
+
+@pytest.mark.parametrize("perception", ["camera", "oracle"])
+def test_gymnasiums_checker_passes_on_paper_50(perception):
+    env = twincell.make_env(PAPER_50, perception=perception)
+    assert isinstance(env, gym.Env)
+    check_env(env, skip_render_check=True)
+    env.close()
+
+
+def hold(obs, **extra):
+    return dict({"joints": obs["joint_positions"].copy()}, **extra)
+
+
+def test_reset_picks_the_scenarios_trial_and_repeats_it(oracle):
+    first, info = oracle.reset(seed=731, options={"trial": 5})
+    assert info == {"trial": 5, "scenario_seed": 731}
+    again, _ = oracle.reset(options={"trial": 5})
+    other, _ = oracle.reset(options={"trial": 6})
+    assert np.array_equal(first["truth"]["part_pose"], again["truth"]["part_pose"])
+    assert not np.array_equal(first["truth"]["part_pose"], other["truth"]["part_pose"])
+    # Without options the next trial follows.
+    _, info = oracle.reset()
+    assert info["trial"] == 7
+
+
+def test_camera_mode_shows_no_truth_until_the_judge_speaks():
+    env = twincell.make_env(PAPER_50, perception="camera")
+    obs, info = env.reset(options={"trial": 0})
+    assert "truth" not in obs and "truth" not in info
+    assert obs["frame_index"][0] == 0 and not obs["frame"].any()
+    obs, reward, terminated, truncated, info = env.step(hold(obs, frame=1))
+    assert "truth" not in obs and "truth" not in info and "success" not in info
+    assert obs["frame_index"][0] == 1
+    assert obs["frame"].shape == (960, 1280, 3) and obs["frame"].dtype == np.uint8
+    assert obs["frame"].std() > 5.0, "the frame shows the cell"
+    verdict = env.finish()
+    assert verdict["success"] is False and verdict["failure"] == "wrong_bin"
+    assert verdict["truth"]["part_type"] in env.part_types
+    env.close()
+
+
+def test_the_photo_eye_and_belt_report_the_part_arriving(oracle):
+    obs, _ = oracle.reset(options={"trial": 2})
+    steps = 0
+    while not obs["photo_eye"]:
+        obs, reward, terminated, truncated, info = oracle.step(hold(obs, belt=1))
+        steps += 1
+        assert not (terminated or truncated) and steps < 400
+    assert obs["belt_speed"][0] > 0 and obs["belt_position"][0] > 0
+    x = obs["truth"]["part_pose"][0, 3]
+    assert abs(x - oracle.scenario["conveyor"]["photo_eye_x_m"]) < 0.05
+    np.testing.assert_allclose(obs["sim_time"][0], steps * oracle.control_period_s)
+
+
+# -- bad calls: each raises naming the argument and the reason ---------------------------------
+
+
+def test_a_wrong_action_shape_names_the_key(oracle):
+    obs, _ = oracle.reset(options={"trial": 0})
+    with pytest.raises(ValueError, match=r"action\['joints'\]: expected 6 joint angles"):
+        oracle.step({"joints": np.zeros(5)})
+    with pytest.raises(ValueError, match=r"action\['tool_pose'\]: expected \[x, y, z, roll"):
+        oracle.step({"tool_pose": np.zeros((2, 3))})
+    with pytest.raises(ValueError, match=r"action\['jaw_width'\]: expected one number"):
+        oracle.step(hold(obs, jaw_width=np.zeros(3)))
+    with pytest.raises(TypeError, match=r"action: expected a dict"):
+        oracle.step(np.zeros(6))
+    with pytest.raises(ValueError, match=r"action: unknown key 'gripper'"):
+        oracle.step(hold(obs, gripper=1))
+
+
+def test_nan_targets_name_the_key_and_element(oracle):
+    obs, _ = oracle.reset(options={"trial": 0})
+    q = obs["joint_positions"].copy()
+    q[3] = np.nan
+    with pytest.raises(ValueError, match=r"action\['joints'\]: element 3 is nan"):
+        oracle.step({"joints": q})
+    with pytest.raises(ValueError, match=r"action\['tool_pose'\]: element 0 is inf"):
+        oracle.step({"tool_pose": [np.inf, 0, 0.9, 0, 0, 0]})
+    with pytest.raises(ValueError, match=r"action\['jaw_force'\]: nan is not a finite"):
+        oracle.step(hold(obs, jaw_force=np.nan))
+    far = obs["joint_positions"].copy()
+    far[1] = 5.0
+    with pytest.raises(ValueError, match=r"action\['joints'\]: joint 2 target 5.0000 rad is outside"):
+        oracle.step({"joints": far})
+    # Refused actions changed nothing: the trial still stands at time 0.
+    obs, *_ = oracle.step(hold(obs))
+    np.testing.assert_allclose(obs["sim_time"][0], oracle.control_period_s)
+
+
+def test_a_closed_env_raises():
+    env = twincell.make_env(PAPER_50, perception="oracle")
+    obs, _ = env.reset()
+    env.close()
+    env.close()  # closing twice is harmless
+    assert env.closed
+    with pytest.raises(RuntimeError, match=r"env: the environment is closed"):
+        env.step(hold(obs))
+    with pytest.raises(RuntimeError, match=r"env: the environment is closed"):
+        env.reset()
+
+
+def test_an_unknown_override_key_names_it():
+    with pytest.raises(ValueError, match=r"overrides: .*conveyor\.sped_m_s"):
+        twincell.make_env(PAPER_50, perception="oracle", **{"conveyor.sped_m_s": 0.2})
+    with pytest.raises(ValueError, match=r'perception: .*"camera" or "oracle"'):
+        twincell.make_env(PAPER_50, perception="lidar")
+    with pytest.raises(ValueError, match=r"options: unknown key 'trail'"):
+        twincell.make_env(PAPER_50, perception="oracle").reset(options={"trail": 3})
+
+
+def test_an_override_changes_the_cell():
+    env = twincell.make_env(PAPER_50, perception="oracle", conveyor__speed_m_s=0.2)
+    assert env.scenario["conveyor"]["speed_m_s"] == 0.2
+    env.close()
