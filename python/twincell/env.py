@@ -81,12 +81,12 @@ class CellEnv(gym.Env):
         self._trial = None
         self._ended = False
         width, height = self.calibration["width_px"], self.calibration["height_px"]
-        self._blank = _read_only(np.zeros((height, width, 3), dtype=np.uint8))
-        self._frame = self._blank
+        self._frame_shape = (height, width, 3)
+        self._frame = np.zeros(self._frame_shape, dtype=np.uint8)
         self._frames = 0
         c = self.calibration
-        self._intrinsics = _read_only(np.array([c["fx_px"], c["fy_px"], c["cx_px"], c["cy_px"]]))
-        self._world_from_camera = _read_only(np.array(c["world_from_camera"], dtype=np.float64))
+        self._intrinsics = np.array([c["fx_px"], c["fy_px"], c["cx_px"], c["cy_px"]])
+        self._world_from_camera = np.array(c["world_from_camera"], dtype=np.float64)
         self.part_types = [t["name"] for t in self.scenario["part_types"]]
         self.bins = [b["name"] for b in self.scenario["bins"]]
         bottle = self.scenario["bottle"]
@@ -162,7 +162,7 @@ class CellEnv(gym.Env):
         raw = self._native.reset(trial, self._base_seed)
         self._trial = trial
         self._ended = False
-        self._frame = self._blank
+        self._frame = np.zeros(self._frame_shape, dtype=np.uint8)
         self._frames = 0
         self._jaw = (float(raw["jaw_width"][0]), float(self.scenario["gripper"]["grip_force_n"]))
         return self._observation(raw), {"trial": trial, "scenario_seed": self._base_seed}
@@ -194,8 +194,9 @@ class CellEnv(gym.Env):
         return self._verdict(json.loads(record))
 
     def render(self):
+        """The last frame the controller asked for (``render_mode="rgb_array"``)."""
         if self.render_mode == "rgb_array":
-            return self._frame
+            return self._frame.copy()
         return None
 
     def close(self):
@@ -237,14 +238,18 @@ class CellEnv(gym.Env):
         return None, target, jaw_width, jaw_force, belt, frame
 
     def _observation(self, raw):
-        frame = raw.pop("frame", None)
+        # Every observation owns its arrays (Gymnasium's rule: users keep them). A frame comes
+        # only after the step that asked for it; the others carry a blank one, which costs
+        # nothing (the zeros are mapped, not written).
+        frame = raw.get("frame")
         if frame is not None:
-            self._frame = _read_only(frame)
+            self._frame = frame
             self._frames += 1
-        raw["frame"] = self._frame
+        else:
+            raw["frame"] = np.zeros(self._frame_shape, dtype=np.uint8)
         raw["frame_index"] = np.array([self._frames], dtype=np.int64)
-        raw["camera_intrinsics"] = self._intrinsics
-        raw["world_from_camera"] = self._world_from_camera
+        raw["camera_intrinsics"] = self._intrinsics.copy()
+        raw["world_from_camera"] = self._world_from_camera.copy()
         truth = raw.get("truth")
         if truth is not None:
             poses = np.zeros((self.max_bottles, 4, 4))
