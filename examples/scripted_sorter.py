@@ -24,8 +24,10 @@ ROOT = Path(__file__).resolve().parents[1]
 GRASP_ABOVE_BOTTOM_M = 0.025
 SAFE_ABOVE_BELT_M = 0.30
 OPEN_CLEARANCE_M = 0.012
-# Tool speed along straight lines, m per control period (1/30 s): 0.3 m/s.
-STEP_M = 0.01
+# Tool speed along straight lines, m per control period (1/30 s): 0.15 m/s.
+STEP_M = 0.005
+# Largest joint speed of the moves between stations, rad/s (the arm's limits are 2.6-3.14).
+JOINT_SPEED_RAD_S = 1.2
 
 
 def project(calibration, point):
@@ -104,10 +106,9 @@ class ScriptedSorter:
         grasp = np.array([xy[0], xy[1], belt_top + GRASP_ABOVE_BOTTOM_M])
         jaws = {"jaw_width": open_width, "jaw_force": 40.0}
         # 3. Over the part, down, close, up.
-        tcp = None
-        for tcp in self._line(None, above):
-            obs = yield dict(jaws, tool_pose=pose(tcp))
-        for _ in range(45):
+        for q in self._joint_move(obs["joint_positions"], self._solve(pose(above), home)):
+            obs = yield dict(jaws, joints=q)
+        for _ in range(10):
             obs = yield dict(jaws, tool_pose=pose(above))
         for tcp in self._line(above, grasp):
             obs = yield dict(jaws, tool_pose=pose(tcp))
@@ -122,8 +123,9 @@ class ScriptedSorter:
         floor = np.array(bin_["floor_center_m"])
         over_bin = np.array([floor[0], floor[1], above[2]])
         into_bin = np.array([floor[0], floor[1], floor[2] + GRASP_ABOVE_BOTTOM_M + 0.03])
-        for tcp in self._line(above, over_bin):
-            obs = yield dict(jaws, tool_pose=pose(tcp))
+        carry = self._solve(pose(over_bin), obs["joint_positions"])
+        for q in self._joint_move(obs["joint_positions"], carry):
+            obs = yield dict(jaws, joints=q)
         for _ in range(15):
             obs = yield dict(jaws, tool_pose=pose(over_bin))
         for tcp in self._line(over_bin, into_bin):
@@ -137,11 +139,37 @@ class ScriptedSorter:
         for _ in range(90):
             obs = yield dict(jaws, tool_pose=pose(over_bin))
 
+    def _solve(self, tool_pose, near):
+        """The joint angles that put the TCP at `tool_pose` (world), nearest `near`."""
+        x, y, z, roll, pitch, yaw = tool_pose
+        c, s = math.cos, math.sin
+        rotation = (np.array([[c(yaw), -s(yaw), 0], [s(yaw), c(yaw), 0], [0, 0, 1]])
+                    @ np.array([[c(pitch), 0, s(pitch)], [0, 1, 0], [-s(pitch), 0, c(pitch)]])
+                    @ np.array([[1, 0, 0], [0, c(roll), -s(roll)], [0, s(roll), c(roll)]]))
+        world_from_tcp = np.eye(4)
+        world_from_tcp[:3, :3] = rotation
+        world_from_tcp[:3, 3] = [x, y, z]
+        base_from_tcp = np.linalg.inv(self.env.world_from_base) @ world_from_tcp
+        solutions = twincell.ik(base_from_tcp, self.env.scenario_path, link="tcp")
+        if len(solutions) == 0:
+            return np.asarray(near)
+        return min(solutions, key=lambda q: np.abs(q - near).max())
+
+    def _joint_move(self, start, end):
+        """Joint targets from `start` to `end`, eased in and out, no joint faster than
+        JOINT_SPEED_RAD_S."""
+        start, end = np.asarray(start), np.asarray(end)
+        period = self.env.control_period_s
+        # An eased (cosine) profile peaks at pi/2 times the mean speed.
+        duration = np.abs(end - start).max() * math.pi / 2 / JOINT_SPEED_RAD_S
+        count = max(1, int(math.ceil(duration / period)))
+        for k in range(count):
+            ease = (1 - math.cos(math.pi * (k + 1) / count)) / 2
+            yield start + (end - start) * ease
+
     @staticmethod
     def _line(start, end):
-        """Points along a straight tool line, STEP_M apart (just the end without a start)."""
-        if start is None:
-            return [end] * 60
+        """Points along a straight tool line, STEP_M apart."""
         count = max(1, int(math.ceil(np.linalg.norm(end - start) / STEP_M)))
         return [start + (end - start) * (k + 1) / count for k in range(count)]
 

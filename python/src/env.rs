@@ -332,6 +332,13 @@ impl PyCellEnv {
         Ok(self.env_ref()?.belt_top_z_m())
     }
 
+    /// The pose of the arm's base (URDF `base_link`) in the world, 4 x 4, once reset: what
+    /// `twincell.ik(..., link="tcp")` solves from.
+    #[getter]
+    fn world_from_base<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyArray2<f64>>>> {
+        Ok(self.env_ref()?.world_from_base().map(|p| matrix(py, &p)))
+    }
+
     /// Each joint's `[min, max]` position limit, rad (6 x 2).
     #[getter]
     fn joint_limits<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {

@@ -207,6 +207,12 @@ class CellEnv(gym.Env):
         return self._native.closed
 
     @property
+    def world_from_base(self):
+        """The arm's base in the world, 4 x 4 (tool poses for ``twincell.ik(pose,
+        scenario, link="tcp")`` are in the base's frame)."""
+        return self._native.world_from_base
+
+    @property
     def belt_top_z_m(self):
         """Top of the belt, world z, m (parts stand on it)."""
         return self._native.belt_top_z_m
