@@ -140,7 +140,9 @@ class ScriptedSorter:
             obs = yield dict(jaws, tool_pose=pose(over_bin))
 
     def _solve(self, tool_pose, near):
-        """The joint angles that put the TCP at `tool_pose` (world), nearest `near`."""
+        """The joint angles that put the TCP at `tool_pose` (world) with the arm's shape
+        (shoulder, elbow, wrist: joints 2-4) nearest `near`'s: the base may turn far, but a
+        move between branches would swing the arm over its top."""
         x, y, z, roll, pitch, yaw = tool_pose
         c, s = math.cos, math.sin
         rotation = (np.array([[c(yaw), -s(yaw), 0], [s(yaw), c(yaw), 0], [0, 0, 1]])
@@ -153,7 +155,8 @@ class ScriptedSorter:
         solutions = twincell.ik(base_from_tcp, self.env.scenario_path, link="tcp")
         if len(solutions) == 0:
             return np.asarray(near)
-        return min(solutions, key=lambda q: np.abs(q - near).max())
+        near = np.asarray(near)
+        return min(solutions, key=lambda q: np.abs(q - near)[1:4].sum() + 0.1 * np.abs(q - near).sum())
 
     def _joint_move(self, start, end):
         """Joint targets from `start` to `end`, eased in and out, no joint faster than

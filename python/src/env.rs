@@ -72,6 +72,16 @@ impl ActionArgs<'_, '_> {
     }
 }
 
+/// An action as `replay` takes it: `(joints, tool_pose, jaw_width, jaw_force, belt, frame)`.
+type ActionTuple<'py> = (
+    Option<Bound<'py, PyAny>>,
+    Option<Bound<'py, PyAny>>,
+    f64,
+    f64,
+    bool,
+    bool,
+);
+
 /// The cell of one scenario, stepped one control period at a time.
 #[pyclass(unsendable, module = "twincell._native", name = "CellEnv")]
 pub struct PyCellEnv {
@@ -243,14 +253,8 @@ impl PyCellEnv {
     fn replay(&mut self, actions: Vec<Bound<'_, PyAny>>) -> PyResult<f64> {
         let mut parsed = Vec::with_capacity(actions.len());
         for a in &actions {
-            let (joints, tool_pose, jaw_width, jaw_force, belt, frame): (
-                Option<Bound<'_, PyAny>>,
-                Option<Bound<'_, PyAny>>,
-                f64,
-                f64,
-                bool,
-                bool,
-            ) = a.extract()?;
+            let (joints, tool_pose, jaw_width, jaw_force, belt, frame): ActionTuple<'_> =
+                a.extract()?;
             let args = ActionArgs {
                 joints: joints.as_ref(),
                 tool_pose: tool_pose.as_ref(),
