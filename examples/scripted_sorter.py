@@ -2,7 +2,10 @@
 mode through twincell's Gymnasium environment, using only the observation (photo-eye, joints,
 jaws, the camera frame with its calibration) and the twin's `detect` and `measure`.
 
-    python examples/scripted_sorter.py [SCENARIO] [--trials N] [--seed S]
+    python examples/scripted_sorter.py [SCENARIO] [--trials N] [--seed S] [--out DIR]
+
+With --out, the trials run through ``twincell.run_trials`` and the twin writes its report
+there (trials.jsonl, report.json, junit.xml, report.html), as ``twincell run`` does.
 
 Its strategy: run the belt until the photo-eye trips, stop, take a frame; find the part nearest
 the pick station with `detect`, measure its bore with `measure` on each catalogue type's
@@ -55,6 +58,20 @@ class ScriptedSorter:
         self.env = env
         self.scenario = env.scenario
         self.calibration = env.calibration
+
+    # As a policy for twincell.run_trials: reset at each trial, then one action per call.
+    def reset(self, env, obs):
+        self._plan = self._steps(obs, env.belt_top_z_m, obs["joint_positions"].copy())
+        self._started = False
+
+    def __call__(self, obs):
+        try:
+            if not self._started:
+                self._started = True
+                return next(self._plan)
+            return self._plan.send(obs)
+        except StopIteration:
+            return None
 
     def run_episode(self, trial, seed=None):
         env = self.env
@@ -239,7 +256,16 @@ def main():
     parser.add_argument("scenario", nargs="?", default=str(ROOT / "scenarios/paper_50.toml"))
     parser.add_argument("--trials", type=int, default=50)
     parser.add_argument("--seed", type=int, default=None)
+    parser.add_argument("--out", default=None)
     args = parser.parse_args()
+    if args.out:
+        env = twincell.make_env(args.scenario, perception="camera", seed=args.seed)
+        report = twincell.run_trials(args.scenario, ScriptedSorter(env), args.out,
+                                     trials=args.trials, perception="camera", seed=args.seed)
+        env.close()
+        print(f"{report['successes']}/{report['trials']} sorted; failures {report['failures']}"
+              f"; report in {args.out}")
+        return
     env = twincell.make_env(args.scenario, perception="camera", seed=args.seed)
     sorter = ScriptedSorter(env)
     successes = 0

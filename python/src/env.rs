@@ -10,8 +10,9 @@ use numpy::{PyArray1, PyArray2, PyArray3};
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
+use twincell::gym::write_batch;
 use twincell::gym::{Action, ArmTarget, CellEnv, EnvError, Observation, PHYSICS_STEPS_PER_CONTROL};
-use twincell::outcome::Perception;
+use twincell::outcome::{Perception, TrialRecord};
 
 use crate::arrays::{bad_value, joints, pose};
 use crate::scenario_arg::cell_model;
@@ -276,6 +277,28 @@ impl PyCellEnv {
         Ok(started.elapsed().as_secs_f64())
     }
 
+    /// Writes `records` (`trials.jsonl` lines of this scenario's trials) into `out` with the
+    /// batch's `report.json`, `junit.xml` and `report.html`; returns the report as JSON.
+    fn write_batch(&self, records: Vec<String>, out: PathBuf) -> PyResult<String> {
+        let env = self.env_ref()?;
+        let mut parsed = Vec::with_capacity(records.len());
+        for (i, line) in records.iter().enumerate() {
+            let record: TrialRecord = serde_json::from_str(line)
+                .map_err(|e| bad_value("records", format!("record {i}: {e}")))?;
+            parsed.push(record);
+        }
+        let scenario = env.model().scenario();
+        let report = write_batch(
+            scenario,
+            env.scenario_seed(),
+            env.perception(),
+            &parsed,
+            &out,
+        )
+        .map_err(|e| bad_value("out", e))?;
+        serde_json::to_string(&report).map_err(|e| PyRuntimeError::new_err(format!("report: {e}")))
+    }
+
     /// Closes the environment; every later call raises.
     fn close(&mut self) {
         self.env = None;
@@ -359,6 +382,6 @@ impl PyCellEnv {
 }
 
 /// A trial record as one line of `trials.jsonl`.
-fn record_json(record: &twincell::outcome::TrialRecord) -> PyResult<String> {
+fn record_json(record: &TrialRecord) -> PyResult<String> {
     serde_json::to_string(record).map_err(|e| PyRuntimeError::new_err(format!("record: {e}")))
 }

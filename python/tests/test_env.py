@@ -2,6 +2,8 @@
 deterministic resets, the judge's info at the episode's end (and no truth before it in camera
 mode), and bad calls raising exceptions that name the argument and the reason."""
 
+import json
+
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -136,3 +138,58 @@ def test_an_override_changes_the_cell():
     env = twincell.make_env(PAPER_50, perception="oracle", conveyor__speed_m_s=0.2)
     assert env.scenario["conveyor"]["speed_m_s"] == 0.2
     env.close()
+
+
+def test_async_vector_envs_step_trials_in_parallel():
+    envs = gym.vector.AsyncVectorEnv(
+        [lambda: twincell.make_env(PAPER_50, perception="oracle") for _ in range(2)]
+    )
+    try:
+        # Gymnasium seeds sub-environment i with seed + i: scenario seeds 731 and 732.
+        obs, info = envs.reset(seed=731, options={"trial": 3})
+        assert obs["joint_positions"].shape == (2, 6)
+        assert list(info["scenario_seed"]) == [731, 732]
+        single = twincell.make_env(PAPER_50, perception="oracle")
+        for i, seed in enumerate([731, 732]):
+            alone, _ = single.reset(seed=seed, options={"trial": 3})
+            np.testing.assert_array_equal(obs["truth"]["part_pose"][i], alone["truth"]["part_pose"])
+        single.close()
+        action = {
+            "arm_mode": np.zeros(2, dtype=np.int64),
+            "joints": obs["joint_positions"].copy(),
+            "tool_pose": np.zeros((2, 6)),
+            "jaw_width": np.full((2, 1), 0.09),
+            "jaw_force": np.full((2, 1), 60.0),
+            "belt": np.ones(2, dtype=np.int64),
+            "frame": np.zeros(2, dtype=np.int64),
+        }
+        for _ in range(5):
+            obs, reward, terminated, truncated, info = envs.step(action)
+        assert (obs["belt_speed"][:, 0] > 0).all()
+        np.testing.assert_allclose(obs["sim_time"][:, 0], 5 * 8 / 240)
+    finally:
+        envs.close()
+
+
+class GiveUpAtTheEye:
+    """Runs the belt until the photo-eye trips, then gives up: a policy for run_trials."""
+
+    def reset(self, env, obs):
+        self.steps = 0
+
+    def __call__(self, obs):
+        if obs["photo_eye"]:
+            return None
+        return {"joints": obs["joint_positions"], "belt": 1}
+
+
+def test_run_trials_writes_the_twins_report(tmp_path):
+    report = twincell.run_trials(PAPER_50, GiveUpAtTheEye(), tmp_path, trials=3,
+                                 perception="oracle")
+    assert report["trials"] == 3 and report["successes"] == 0
+    assert report["failures"] == {"wrong_bin": 3}
+    assert report["perception"] == "oracle" and report["seed"] == 731
+    for name in ("trials.jsonl", "report.json", "junit.xml", "report.html"):
+        assert (tmp_path / name).is_file(), name
+    lines = (tmp_path / "trials.jsonl").read_text().splitlines()
+    assert [json.loads(line)["trial"] for line in lines] == [0, 1, 2]

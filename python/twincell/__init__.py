@@ -3,6 +3,8 @@ cell as a Gymnasium environment.
 
 - ``make_env(scenario, perception="camera"|"oracle", seed=None, **overrides)``: a
   ``gymnasium.Env`` whose episodes are the scenario's trials, judged by the twin at their end.
+- ``run_trials(scenario, policy, out)``: a controller over a scenario's trials, with the
+  twin's report files (trials.jsonl, report.json, junit.xml, report.html).
 - ``detect(image)``: the part detector on an RGB frame (numpy uint8, H x W x 3).
 - ``measure(image, calibration=None)``: the paper's bore metrology, in pixels, and in
   millimetres on the end-face plane with a camera calibration.
@@ -14,7 +16,7 @@ Bad arguments raise ``ValueError`` or ``TypeError`` naming the argument and the 
 """
 
 from ._native import detect, fk, ik, measure, plan_pick
-from .env import PHYSICS_STEPS_PER_CONTROL, CellEnv, make_env
+from .env import PHYSICS_STEPS_PER_CONTROL, CellEnv, make_env, run_trials
 
 __all__ = [
     "PHYSICS_STEPS_PER_CONTROL",
@@ -25,4 +27,5 @@ __all__ = [
     "make_env",
     "measure",
     "plan_pick",
+    "run_trials",
 ]

@@ -303,3 +303,32 @@ def make_env(scenario, perception="camera", seed=None, **overrides):
     ``conveyor.speed_m_s``)."""
     keys = {key.replace("__", "."): value for key, value in overrides.items()}
     return CellEnv(scenario, perception=perception, seed=seed, **keys)
+
+
+def run_trials(scenario, policy, out, trials=None, perception="camera", seed=None, **overrides):
+    """Runs ``policy`` over the scenario's trials (its ``trials``, or ``trials`` of them) and
+    writes the twin's report into ``out`` as ``twincell run`` does: ``trials.jsonl``,
+    ``report.json``, ``junit.xml`` and ``report.html``. ``policy(obs)`` returns an action;
+    when it has a ``reset(env, obs)`` method, that is called at each trial's start. A policy
+    that stops before the twin's judge ends a trial (it returns None) gives the trial up
+    (``env.finish()``). Returns the report (a dict)."""
+    env = make_env(scenario, perception=perception, seed=seed, **overrides)
+    try:
+        count = int(env.scenario["trials"]) if trials is None else int(trials)
+        records = []
+        for trial in range(count):
+            obs, _ = env.reset(options={"trial": trial})
+            if hasattr(policy, "reset"):
+                policy.reset(env, obs)
+            while True:
+                action = policy(obs)
+                if action is None:
+                    info = env.finish()
+                    break
+                obs, _, terminated, truncated, info = env.step(action)
+                if terminated or truncated:
+                    break
+            records.append(json.dumps(info["record"]))
+        return json.loads(env._native.write_batch(records, str(out)))
+    finally:
+        env.close()

@@ -9,10 +9,12 @@
 //! and in the record once the trial is over.
 
 mod action;
+mod batch_files;
 mod cell_env;
 mod episode_end;
 mod observation;
 
 pub use action::{Action, ActionError, ArmTarget, MAX_JAW_FORCE_N, MAX_JAW_WIDTH_M};
+pub use batch_files::{BatchFilesError, write_batch};
 pub use cell_env::{CellEnv, EnvError, PHYSICS_STEPS_PER_CONTROL, StepResult};
 pub use observation::{Observation, Truth};
