@@ -61,6 +61,7 @@ class ScriptedSorter:
 
     # As a policy for twincell.run_trials: reset at each trial, then one action per call.
     def reset(self, env, obs):
+        self.env = env
         self._plan = self._steps(obs, env.belt_top_z_m, obs["joint_positions"].copy())
         self._started = False
 
@@ -260,9 +261,10 @@ def main():
     args = parser.parse_args()
     if args.out:
         env = twincell.make_env(args.scenario, perception="camera", seed=args.seed)
-        report = twincell.run_trials(args.scenario, ScriptedSorter(env), args.out,
-                                     trials=args.trials, perception="camera", seed=args.seed)
+        sorter = ScriptedSorter(env)
         env.close()
+        report = twincell.run_trials(args.scenario, sorter, args.out, trials=args.trials,
+                                     perception="camera", seed=args.seed)
         print(f"{report['successes']}/{report['trials']} sorted; failures {report['failures']}"
               f"; report in {args.out}")
         return
