@@ -317,7 +317,12 @@ def run_trials(scenario, policy, out, trials=None, perception="camera", seed=Non
         count = int(env.scenario["trials"]) if trials is None else int(trials)
         records = []
         for trial in range(count):
-            obs, _ = env.reset(options={"trial": trial})
+            try:
+                obs, _ = env.reset(options={"trial": trial})
+            except RuntimeError:
+                # The trial's cell could not be built: a failed record, as `twincell run` has.
+                records.append(json.dumps(env.finish()["record"]))
+                continue
             if hasattr(policy, "reset"):
                 policy.reset(env, obs)
             while True:

@@ -80,6 +80,8 @@ pub struct CellEnv {
     renderer: Option<Renderer>,
     scenario_seed: u64,
     episode: Option<Episode>,
+    /// The record of a trial whose cell could not be built (its last reset failed).
+    unbuilt: Option<TrialRecord>,
 }
 
 impl CellEnv {
@@ -100,6 +102,7 @@ impl CellEnv {
             renderer: None,
             scenario_seed,
             episode: None,
+            unbuilt: None,
         };
         if perception == Perception::Camera {
             env.renderer()?;
@@ -161,7 +164,21 @@ impl CellEnv {
             self.scenario_seed = seed;
         }
         self.episode = None;
-        let data = CellData::reset(&self.model, trial_seed(self.scenario_seed, trial))?;
+        self.unbuilt = None;
+        let seed = trial_seed(self.scenario_seed, trial);
+        let data = match CellData::reset(&self.model, seed) {
+            Ok(data) => data,
+            Err(e) => {
+                // Recorded as `twincell run` records it: a failed trial, not a failed batch.
+                let reason = match &e {
+                    CellError::Placement(_) => FailureReason::Placement,
+                    _ => FailureReason::PhysicsBlowUp,
+                };
+                let detail = format!("cell could not be built: {e}");
+                self.unbuilt = Some(TrialRecord::failed(trial, seed, reason, detail));
+                return Err(e.into());
+            }
+        };
         let view = data.view();
         let target_q = view.joint_command_rad;
         let pads = view.jaw_positions_m();
@@ -243,8 +260,12 @@ impl CellEnv {
     }
 
     /// Ends the episode now, as a controller that gives up: the trial is judged as it stands.
-    /// `None` when no episode runs; the record it already had when it had ended.
+    /// The record it already had when it had ended; a trial whose cell could not be built
+    /// (the last reset failed) is a failed record; `None` before any reset.
     pub fn finish(&mut self) -> Option<TrialRecord> {
+        if let Some(record) = &self.unbuilt {
+            return Some(record.clone());
+        }
         let model = &self.model;
         let episode = self.episode.as_mut()?;
         if episode.record.is_none() {
