@@ -53,7 +53,9 @@ def test_camera_mode_shows_no_truth_until_the_judge_speaks():
     obs, reward, terminated, truncated, info = env.step(hold(obs, frame=1))
     assert "truth" not in obs and "truth" not in info and "success" not in info
     assert obs["frame_index"][0] == 1
-    assert obs["frame"].shape == (960, 1280, 3) and obs["frame"].dtype == np.uint8
+    calibration = env.unwrapped.calibration
+    shape = (calibration["height_px"], calibration["width_px"], 3)
+    assert obs["frame"].shape == shape and obs["frame"].dtype == np.uint8
     assert obs["frame"].std() > 5.0, "the frame shows the cell"
     verdict = env.finish()
     assert verdict["success"] is False and verdict["failure"] == "wrong_bin"
