@@ -22,3 +22,4 @@ pub mod batch;
 #[cfg(feature = "record")]
 pub mod record;
 pub mod demo;
+pub mod gym;

@@ -2,7 +2,7 @@
 
 use image::{GrayImage, RgbImage};
 use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion};
-use numpy::{PyArrayDyn, PyArrayMethods, PyUntypedArrayMethods};
+use numpy::{PyArray1, PyArrayDyn, PyArrayMethods, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 
@@ -98,18 +98,20 @@ pub fn floats(arg: &str, value: &Bound<'_, PyAny>) -> PyResult<Vec<f64>> {
     };
     let values: Vec<f64> = array.readonly().as_array().iter().copied().collect();
     if let Some(i) = values.iter().position(|v| !v.is_finite()) {
-        // Spelled as Python prints it.
-        let shown = match values[i] {
-            v if v.is_nan() => "nan",
-            v if v > 0.0 => "inf",
-            _ => "-inf",
-        };
-        return Err(bad_value(
-            arg,
-            format!("element {i} is {shown} (not a finite number)"),
-        ));
+        return Err(not_finite(arg, i, values[i]));
     }
     Ok(values)
+}
+
+/// Element `i` of `arg` is `value`, not a finite number.
+fn not_finite(arg: &str, i: usize, value: f64) -> PyErr {
+    // Spelled as Python prints it.
+    let shown = match value {
+        v if v.is_nan() => "nan",
+        v if v > 0.0 => "inf",
+        _ => "-inf",
+    };
+    bad_value(arg, format!("element {i} is {shown} (not a finite number)"))
 }
 
 /// The shape of `value` as an array of numbers.
@@ -120,6 +122,17 @@ fn shape_of(value: &Bound<'_, PyAny>) -> PyResult<Vec<usize>> {
 
 /// Six joint angles, rad.
 pub fn joints(arg: &str, value: &Bound<'_, PyAny>) -> PyResult<[f64; 6]> {
+    // A float64 array of six, the common case (every step of an environment), read directly.
+    if let Ok(array) = value.cast::<PyArray1<f64>>()
+        && let Ok(readonly) = array.try_readonly()
+        && let Ok(slice) = readonly.as_slice()
+        && let Ok(q) = <[f64; 6]>::try_from(slice)
+    {
+        if let Some(i) = q.iter().position(|v| !v.is_finite()) {
+            return Err(not_finite(arg, i, q[i]));
+        }
+        return Ok(q);
+    }
     let shape = shape_of(value).map_err(|_| bad_type(arg, "expected 6 joint angles"))?;
     if shape != [6] {
         return Err(bad_value(

@@ -7,6 +7,7 @@
 
 mod arrays;
 mod detect;
+mod env;
 mod kinematics;
 mod measure;
 mod plan;
@@ -22,5 +23,6 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(kinematics::ik, m)?)?;
     m.add_function(wrap_pyfunction!(kinematics::fk, m)?)?;
     m.add_function(wrap_pyfunction!(plan::plan_pick, m)?)?;
+    m.add_class::<env::PyCellEnv>()?;
     Ok(())
 }

@@ -1,5 +1,10 @@
-"""twincell from Python: the digital twin's stages as functions over numpy arrays.
+"""twincell from Python: the digital twin's stages as functions over numpy arrays, and the
+cell as a Gymnasium environment.
 
+- ``make_env(scenario, perception="camera"|"oracle", seed=None, **overrides)``: a
+  ``gymnasium.Env`` whose episodes are the scenario's trials, judged by the twin at their end.
+- ``run_trials(scenario, policy, out)``: a controller over a scenario's trials, with the
+  twin's report files (trials.jsonl, report.json, junit.xml, report.html).
 - ``detect(image)``: the part detector on an RGB frame (numpy uint8, H x W x 3).
 - ``measure(image, calibration=None)``: the paper's bore metrology, in pixels, and in
   millimetres on the end-face plane with a camera calibration.
@@ -11,5 +16,16 @@ Bad arguments raise ``ValueError`` or ``TypeError`` naming the argument and the 
 """
 
 from ._native import detect, fk, ik, measure, plan_pick
+from .env import PHYSICS_STEPS_PER_CONTROL, CellEnv, make_env, run_trials
 
-__all__ = ["detect", "fk", "ik", "measure", "plan_pick"]
+__all__ = [
+    "PHYSICS_STEPS_PER_CONTROL",
+    "CellEnv",
+    "detect",
+    "fk",
+    "ik",
+    "make_env",
+    "measure",
+    "plan_pick",
+    "run_trials",
+]
