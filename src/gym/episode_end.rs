@@ -152,6 +152,8 @@ impl Watch {
             stream: None,
             grasp: None,
             faults,
+            removals: 0,
+            passed: None,
         }
     }
 }
