@@ -78,7 +78,7 @@ impl Watch {
             if data.photo_eye_reports() {
                 self.first_stop_s.get_or_insert(data.cell.world.time_s());
             }
-            note_bottle_rest(model, data);
+            data.note_bottle_rest(model);
         }
         let part = &data.cell.items.parts()[0];
         let body = part.body;
@@ -155,18 +155,5 @@ impl Watch {
             removals: 0,
             passed: None,
         }
-    }
-}
-
-/// Notes each bottle's pose on the belt (`None` for one that has left it), as the built-in
-/// controller does when the belt stops for a pick.
-fn note_bottle_rest(model: &CellModel, data: &mut CellData) {
-    let belt = &model.scenario().conveyor;
-    let belt_end_x = belt.belt_center_m[0] + belt.length_m / 2.0;
-    let cell = &data.cell;
-    for (rest, bottle) in data.bottle_rest.iter_mut().zip(cell.items.bottles()) {
-        *rest = cell.body_pose(bottle.body).filter(|pose| {
-            pose.translation.x < belt_end_x && (pose.translation.z - cell.belt_top_z).abs() < 0.2
-        });
     }
 }

@@ -44,9 +44,15 @@ impl CellData {
             self.step(model)?;
         }
         self.settle(model, 0.25)?;
-        // Bottles still on the belt are watched through the cycle; one that has run off the
-        // belt's end is out of the robot's reach.
-        let belt = &scenario.conveyor;
+        self.note_bottle_rest(model);
+        Ok(self.cell.world.time_s())
+    }
+
+    /// Notes each bottle's pose where the belt stopped: bottles still on the belt are watched
+    /// through the cycle; one that has run off the belt's end (`None`) is out of the robot's
+    /// reach.
+    pub(crate) fn note_bottle_rest(&mut self, model: &CellModel) {
+        let belt = &model.scenario().conveyor;
         let belt_end_x = belt.belt_center_m[0] + belt.length_m / 2.0;
         for (rest, bottle) in self.bottle_rest.iter_mut().zip(self.cell.items.bottles()) {
             *rest = self.cell.body_pose(bottle.body).filter(|pose| {
@@ -54,7 +60,6 @@ impl CellData {
                     && (pose.translation.z - self.cell.belt_top_z).abs() < 0.2
             });
         }
-        Ok(self.cell.world.time_s())
     }
 
     /// Runs the belt until the bottle at the photo-eye has passed it.
