@@ -68,6 +68,19 @@ impl CycleEvidence {
     }
 }
 
+/// The failures every cycle is judged on first: the controller's own, then a lifted bottle.
+fn controller_or_lift(
+    controller: Result<(), Failure>,
+    evidence: &CycleEvidence,
+) -> Option<Failure> {
+    if let Err(failure) = controller {
+        return Some(failure);
+    }
+    evidence
+        .bottle_lifted
+        .then(|| Failure::new(FailureReason::DistractorPicked, "the bottle was lifted"))
+}
+
 /// The failure of a pick cycle on `part`, if any: the controller's own failure first, then a
 /// lifted bottle, a disturbed one, and last the wrong bin.
 pub fn judge_cycle(
@@ -77,14 +90,8 @@ pub fn judge_cycle(
     controller: Result<(), Failure>,
     evidence: &CycleEvidence,
 ) -> Option<Failure> {
-    if let Err(failure) = controller {
+    if let Some(failure) = controller_or_lift(controller, evidence) {
         return Some(failure);
-    }
-    if evidence.bottle_lifted {
-        return Some(Failure::new(
-            FailureReason::DistractorPicked,
-            "the bottle was lifted",
-        ));
     }
     if evidence.bottle_disturbed(scenario) {
         let moved_mm = evidence.bottle_displacement_m * 1e3;
@@ -112,14 +119,8 @@ pub fn judge_cycle(
 /// controller's own failure, a lifted bottle, or the robot's touch on one. Bottles the belt
 /// carried on with the part do not count as disturbed.
 pub fn judge_pass(controller: Result<(), Failure>, evidence: &CycleEvidence) -> Option<Failure> {
-    if let Err(failure) = controller {
+    if let Some(failure) = controller_or_lift(controller, evidence) {
         return Some(failure);
-    }
-    if evidence.bottle_lifted {
-        return Some(Failure::new(
-            FailureReason::DistractorPicked,
-            "the bottle was lifted",
-        ));
     }
     evidence.touch_phase.map(|phase| {
         Failure::new(
