@@ -145,7 +145,6 @@ pub struct CameraPerception {
     renderers: Mutex<Vec<Renderer>>,
     detectors: Mutex<Vec<Detector>>,
     bore_detector: BoreDetector,
-    bore_params: BoreDetectorParams,
     /// The scenario type each detector class names (by measurement: the one of that name, or
     /// the bulkiest, until the target is measured).
     type_of_class: Vec<Option<usize>>,
@@ -224,8 +223,6 @@ impl CameraPerception {
             type_of_class[class] = Some(type_index);
         }
         let bottle_fitter = BottleFitter::new(rig.calibration, &scenario.bottle);
-        let bore_params =
-            BoreDetectorParams::default().at_scale(f64::from(scenario.camera.roi_scale));
         Ok(Self {
             rig,
             roi_scale: scenario.camera.roi_scale,
@@ -233,8 +230,9 @@ impl CameraPerception {
             model,
             renderers: Mutex::new(vec![renderer]),
             detectors: Mutex::new(vec![detector]),
-            bore_detector: BoreDetector::new(bore_params),
-            bore_params,
+            bore_detector: BoreDetector::new(
+                BoreDetectorParams::default().at_scale(f64::from(scenario.camera.roi_scale)),
+            ),
             type_of_class,
             type_reader,
             bottle_class: FOREIGN_CLASSES.iter().find_map(|name| class_index(name)),
@@ -262,7 +260,7 @@ impl CameraPerception {
         if foreshortening <= FORESHORTENING_ALLOWANCE {
             return std::borrow::Cow::Borrowed(&self.bore_detector);
         }
-        let mut params = self.bore_params;
+        let mut params = self.bore_detector.params;
         params.max_roundness_ratio += foreshortening - FORESHORTENING_ALLOWANCE;
         std::borrow::Cow::Owned(BoreDetector::new(params))
     }
