@@ -12,9 +12,12 @@
 //!   salt-and-pepper), with the model's plain definition beside it as the reference its tests
 //!   compare against; [`shot`]: a staged pick-station shot with drawn realism and ground truth;
 //!   [`window`]: an area of interest of a shot read out at the sensor's full pitch;
+//!   [`binned`]: the detector's frame drawn binned on the sensor, at the detector's own
+//!   resolution;
 //!   [`dataset`]: an Ultralytics/YOLO dataset of such shots, or of [`family`] shots drawn over
 //!   the whole tube family and camera envelope.
 
+pub mod binned;
 mod cull;
 pub mod dataset;
 pub mod error;
@@ -27,12 +30,14 @@ mod pipeline;
 pub mod renderer;
 pub mod scene;
 pub mod sensor;
+mod sensor_binned;
 mod sensor_noise;
 mod sensor_reference;
 pub mod shot;
 mod targets;
 pub mod window;
 
+pub use binned::reader_bin;
 pub use error::RenderError;
 pub use renderer::{Exposure, GpuScene, Light, Renderer, RendererOptions, StainBlob};
 pub use scene::{ObjectKind, Scene, SceneObject};

@@ -201,7 +201,7 @@ fn expose(pixels: &mut [u8], normal: &mut FastNormal, columns: &Columns, rows: &
 }
 
 /// Salt of the salt-and-pepper stream, derived from the frame's noise seed.
-const SALT_PEPPER_STREAM: u64 = 0x5a17;
+pub(super) const SALT_PEPPER_STREAM: u64 = 0x5a17;
 #[cfg(test)]
 mod tests {
     use super::*;

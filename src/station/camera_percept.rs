@@ -140,6 +140,8 @@ pub struct Sighting {
 pub struct CameraPerception {
     rig: CameraRig,
     roi_scale: u32,
+    /// The binning the detector reads the frame through ([`crate::render::reader_bin`]).
+    frame_bin: u32,
     options: RendererOptions,
     model: DetectorModel,
     renderers: Mutex<Vec<Renderer>>,
@@ -226,6 +228,10 @@ impl CameraPerception {
         Ok(Self {
             rig,
             roi_scale: scenario.camera.roi_scale,
+            frame_bin: crate::render::reader_bin(
+                (rig.width_px, rig.height_px),
+                (detector.card().input_width, detector.card().input_height),
+            ),
             options,
             model,
             renderers: Mutex::new(vec![renderer]),
@@ -312,7 +318,7 @@ impl CameraPerception {
         let started = Instant::now();
         let shot = Shot::of_scene(scenario, &self.rig, &scenario.sensor, scene, rng);
         let gpu = renderer.upload(&shot.scene);
-        let image = shot.render_uploaded(renderer, &gpu)?;
+        let image = shot.render_binned(renderer, &gpu, self.frame_bin)?;
         let mut render_ms = started.elapsed().as_secs_f64() * 1e3;
 
         let started = Instant::now();
