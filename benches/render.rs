@@ -9,6 +9,11 @@
 //! which a machine shared with other jobs inflates far less than wall time. `render_cpu` also
 //! breaks a frame down: an empty frame (clear, MSAA resolve, readback) and the frame without
 //! MSAA, and measures the sensor effects (fast and reference) by CPU time as well.
+//!
+//! `look_frame_*` (both groups, 1280x960): the whole frame a look hands the detector, sensor
+//! effects included: drawn with one sample per pixel at the frame's size (as before issue 29's
+//! binned frame), and binned 4x4 on the sensor at the detector's own resolution (320x240, 4x
+//! MSAA; `Shot::render_binned`, what a look draws now).
 
 use std::hint::black_box;
 use std::path::Path;
@@ -18,7 +23,9 @@ use criterion::measurement::Measurement;
 use criterion::{BenchmarkGroup, Criterion, criterion_group, criterion_main};
 use image::RgbImage;
 use twincell::cell::CellModel;
-use twincell::render::{CameraRig, Exposure, GpuScene, Renderer, RendererOptions, Scene, Shot};
+use twincell::render::{
+    CameraRig, Exposure, GpuScene, Renderer, RendererOptions, Scene, Shot, reader_bin,
+};
 use twincell::scenario::Scenario;
 
 #[path = "common/cpu_time.rs"]
@@ -79,6 +86,31 @@ fn frame(renderer: &mut Renderer, gpu: &GpuScene, exposure: &Exposure) -> RgbIma
     }
 }
 
+/// The look's frame for the detector, sensor effects included: one sample per pixel at the
+/// frame's size, and binned at the detector's resolution (the letterbox's whole factor into the
+/// shipped detector's 320x256 input: 4 at 1280x960).
+fn look_frame_benches<M: Measurement>(
+    group: &mut BenchmarkGroup<'_, M>,
+    renderer: &mut Renderer,
+    gpu: &GpuScene,
+    shot: &Shot,
+) {
+    let (w, h) = (shot.exposure.width_px, shot.exposure.height_px);
+    group.bench_function(format!("look_frame_single_sample_{w}x{h}"), |b| {
+        b.iter(|| match shot.render_uploaded(renderer, gpu) {
+            Ok(image) => black_box(image),
+            Err(e) => panic!("{e}"),
+        })
+    });
+    let bin = reader_bin((w, h), (320, 256));
+    group.bench_function(format!("look_frame_binned_{bin}x{bin}_{w}x{h}"), |b| {
+        b.iter(|| match shot.render_binned(renderer, gpu, bin) {
+            Ok(image) => black_box(image),
+            Err(e) => panic!("{e}"),
+        })
+    });
+}
+
 /// The sensor model on a clean `frame` of `shot`: the fast path, and the model's plain
 /// definition, which the fast path is tested against.
 fn sensor_benches<M: Measurement>(
@@ -126,6 +158,9 @@ fn render_benches(c: &mut Criterion) {
                 },
             )
         });
+        if w == 1280 {
+            look_frame_benches(&mut group, &mut renderer, &gpu, &shot);
+        }
         let clean = frame(&mut renderer, &gpu, &shot.exposure);
         sensor_benches(&mut group, &shot, &clean, (w, h));
         group.bench_function(format!("upload_{w}x{h}"), |b| {
@@ -165,6 +200,9 @@ fn cpu_benches(c: &mut Criterion<ProcessCpuTime>) {
         // The sensor model runs on the calling thread only: its CPU time is its cost with
         // little of the inflation that other jobs on the machine add to wall time.
         let gpu = msaa.upload(&shot.scene);
+        if w == 1280 {
+            look_frame_benches(&mut group, &mut msaa, &gpu, &shot);
+        }
         let clean = frame(&mut msaa, &gpu, &shot.exposure);
         sensor_benches(&mut group, &shot, &clean, (w, h));
     }
