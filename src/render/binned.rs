@@ -3,7 +3,7 @@
 //! path, 1280 x 960 into 320 x 256: `k` = 4). Drawing the `k`-times finer frame to average it
 //! away is most of a look's render; a sensor binning `k` x `k` delivers those block means itself.
 //! So the frame is drawn at the binned size (with the renderer's MSAA), given the binned sensor's
-//! effects ([`SensorDraw::apply_binned`]), and delivered at the frame's pitch with each binned
+//! effects ([`super::sensor::SensorDraw::apply_binned`]), and delivered at the frame's pitch with each binned
 //! value over its `k` x `k` block: the block means the detector takes are the binned values.
 
 use image::RgbImage;

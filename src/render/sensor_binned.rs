@@ -104,8 +104,8 @@ mod tests {
             for dy in 0..k {
                 for dx in 0..k {
                     let px = image.get_pixel(x * k + dx, y * k + dy);
-                    for c in 0..3 {
-                        sums[c] += u32::from(px.0[c]);
+                    for (sum, value) in sums.iter_mut().zip(px.0) {
+                        *sum += u32::from(value);
                     }
                 }
             }
