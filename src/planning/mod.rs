@@ -3,6 +3,8 @@
 
 mod collision;
 mod cylinder_grasp;
+#[cfg(test)]
+mod cylinder_grasp_tests;
 mod grasp_search;
 mod payload;
 mod pick_planner;
