@@ -2,6 +2,9 @@
 //! trajectories within the arm's limits.
 
 mod collision;
+mod cylinder_grasp;
+#[cfg(test)]
+mod cylinder_grasp_tests;
 mod grasp_search;
 mod payload;
 mod pick_planner;
@@ -15,12 +18,13 @@ mod trajectory;
 pub use collision::{
     Carried, Clearance, CollisionChecker, CollisionHit, LinkMount, Obstacle, RobotShape,
 };
+pub use cylinder_grasp::{CylinderPick, GripCylinder, cylinder_obstacle};
 pub use grasp_search::{
     Approach, CLEARANCE_CAP_M, GraspPose, GraspRanking, GraspSearch, ScoredGrasp,
 };
 pub use payload::{GRIP_SAFETY_FACTOR, Payload};
 pub use pick_planner::{
-    GRASP_TCP_ABOVE_BOTTOM_M, PART_OBSTACLE, PickPlan, PickPlanner, PlacePlan, bin_slot,
+    GRASP_TCP_ABOVE_BOTTOM_M, PART_OBSTACLE, PickPlan, PickPlanner, PlacePlan, PlaceSpot, bin_slot,
     scenery_obstacles,
 };
 pub use robot_shapes::capture_robot_shapes;

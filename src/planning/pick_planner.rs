@@ -5,7 +5,7 @@ use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use rapier3d::geometry::SharedShape;
 
 use super::capture_robot_shapes;
-use super::grasp_search::GraspSearch;
+use super::grasp_search::{GraspRanking, GraspSearch};
 use super::{
     Carried, CollisionChecker, JointTrajectory, Obstacle, Payload, RobotShape, straight_line,
 };
@@ -61,6 +61,20 @@ pub struct PlacePlan {
     pub lower: JointTrajectory,
     /// Straight up (part 0), blended into the move home (part 1), jaws open.
     pub retreat: JointTrajectory,
+}
+
+/// Where a carried object is put down: over `xy`, lowered from `above_z` to `place_z` (TCP
+/// heights, world, m) in the bin named `bin_name`.
+#[derive(Debug, Clone, Copy)]
+pub struct PlaceSpot<'a> {
+    /// The place's centre, world x and y, m.
+    pub xy: [f64; 2],
+    /// TCP height where the straight descent starts, m.
+    pub above_z: f64,
+    /// TCP height where the jaws open, m.
+    pub place_z: f64,
+    /// The bin's name, for reports.
+    pub bin_name: &'a str,
 }
 
 /// The robot and the cell as the planner sees them, fixed for a trial.
@@ -201,6 +215,27 @@ impl PickPlanner {
         let [x, y] = percept.part_xy;
         let ranking = GraspSearch::new(self, percept, checker, q_now).rank();
         let open = self.open_offset_m(percept);
+        self.first_clear_pick(&ranking, checker, open, q_now)
+            .map_err(|failure| match failure.reason {
+                FailureReason::Unreachable => Failure::new(
+                    FailureReason::Unreachable,
+                    format!("no IK solution to grasp the part at ({x:.3}, {y:.3})"),
+                ),
+                _ => failure,
+            })
+    }
+
+    /// The best of `ranking`'s grasps whose whole approach passes `checker` with the jaws open
+    /// `open_m`, from the arm at `q_now`; the object picked is [`PART_OBSTACLE`] in `checker`,
+    /// which the fingers may pass on their way down around it. A refusal is `Collision` when
+    /// some grasp was reachable, `Unreachable` when none was.
+    pub(super) fn first_clear_pick(
+        &self,
+        ranking: &GraspRanking,
+        checker: &CollisionChecker,
+        open: f64,
+        q_now: &JointVector,
+    ) -> Result<PickPlan, Failure> {
         let speed = self.speed_fraction;
         let tried = ranking.candidates;
         let mut last_hit = String::new();
@@ -259,10 +294,7 @@ impl PickPlanner {
                 format!("no grasp clear of the obstacles among {tried} candidates: {last_hit}"),
             )
         } else {
-            fail(
-                FailureReason::Unreachable,
-                format!("no IK solution to grasp the part at ({x:.3}, {y:.3})"),
-            )
+            fail(FailureReason::Unreachable, "no IK solution for any grasp")
         }
     }
 
@@ -278,8 +310,6 @@ impl PickPlanner {
         payload: &Payload,
         checker: &CollisionChecker,
     ) -> Result<PlacePlan, Failure> {
-        let q_start = &pick.lift_end;
-        let grip_limits = payload.tool_limits();
         let floor = bin.floor_center + bin_slot(bin, placed_before);
         let place_z = floor.z + 0.012 + GRASP_TCP_ABOVE_BOTTOM_M;
         let above_z = floor.z + bin.wall_height + 0.04 + GRASP_TCP_ABOVE_BOTTOM_M;
@@ -297,16 +327,41 @@ impl PickPlanner {
                 percept.part_outer_radius_m as f32,
             ),
         };
+        let spot = PlaceSpot {
+            xy: [floor.x, floor.y],
+            above_z,
+            place_z,
+            bin_name: &bin.name,
+        };
         let grip = percept.part_outer_radius_m;
         let open = self.open_offset_m(percept);
+        self.place_carried(&carried, (grip, open), &spot, pick, payload, checker)
+    }
+
+    /// The first collision-free place of `carried`, held with the pads `grip_m` from the
+    /// centre line and released to `open_m`, down to `spot`, lifted along `pick`'s lift and
+    /// carried within what the grip on `payload` holds.
+    pub(super) fn place_carried(
+        &self,
+        carried: &Carried,
+        (grip, open): (f64, f64),
+        spot: &PlaceSpot<'_>,
+        pick: &PickPlan,
+        payload: &Payload,
+        checker: &CollisionChecker,
+    ) -> Result<PlacePlan, Failure> {
+        let q_start = &pick.lift_end;
+        let grip_limits = payload.tool_limits();
+        let [floor_x, floor_y] = spot.xy;
+        let (above_z, place_z) = (spot.above_z, spot.place_z);
         let speed = self.speed_fraction;
         let carry = self.carry_speed_fraction;
         let mut reachable = false;
         let mut last_hit = String::new();
         for yaw_deg in [0.0, 90.0, 180.0, 270.0, 45.0, 135.0, 225.0, 315.0] {
             let yaw = f64::to_radians(yaw_deg);
-            let above = self.base_from_tcp(Vector3::new(floor.x, floor.y, above_z), yaw, 0.0);
-            let at = self.base_from_tcp(Vector3::new(floor.x, floor.y, place_z), yaw, 0.0);
+            let above = self.base_from_tcp(Vector3::new(floor_x, floor_y, above_z), yaw, 0.0);
+            let at = self.base_from_tcp(Vector3::new(floor_x, floor_y, place_z), yaw, 0.0);
             for q_above in self.ik.solve(&above).by_distance_from(q_start) {
                 let Some(down) = straight_line(&self.ik, &above, &at, &q_above, LINE_STEP_M) else {
                     continue;
@@ -336,9 +391,9 @@ impl PickPlanner {
                 // straight off the belt it stands on.
                 let over_s = (carry_move.part_starts_s()[1], carry_move.duration_s());
                 let hit = checker
-                    .check_trajectory(&lower, grip, Some(&carried), &ignore)
+                    .check_trajectory(&lower, grip, Some(carried), &ignore)
                     .or_else(|| {
-                        checker.check_span(&carry_move, over_s, grip, Some(&carried), &ignore)
+                        checker.check_span(&carry_move, over_s, grip, Some(carried), &ignore)
                     })
                     .or_else(|| checker.check_trajectory(&retreat, open, None, &ignore));
                 match hit {
@@ -363,7 +418,7 @@ impl PickPlanner {
         } else {
             fail(
                 FailureReason::Unreachable,
-                format!("bin {} is out of reach", bin.name),
+                format!("bin {} is out of reach", spot.bin_name),
             )
         }
     }

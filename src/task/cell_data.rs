@@ -42,6 +42,13 @@ pub struct CellData {
     pub(crate) bottle_rest: Vec<Option<Isometry3<f64>>>,
     /// The phase in which the robot first touched a bottle in this cycle.
     pub(crate) touch_phase: Option<Phase>,
+    /// Bottles a planned removal has put into the waste bin, by index: no longer watched.
+    pub(crate) removed: Vec<bool>,
+    /// While a removal runs, each bottle's first touch by the robot and its phase: the one the
+    /// removal puts into the waste bin was meant to be touched, any other was not.
+    pub(crate) removal_touches: Option<Vec<Option<Phase>>>,
+    /// Bottles removed into the waste bin so far in the trial.
+    pub(crate) removals: u32,
     /// How the arm has moved so far, as measured in the physics.
     pub(crate) motion: MotionRecord,
     pub(crate) timing: TrialTiming,
@@ -82,6 +89,9 @@ impl CellData {
             q: scenario.robot.home_q_rad,
             bottle_rest: vec![None; cell.items.bottles().len()],
             touch_phase: None,
+            removed: Vec::new(),
+            removal_touches: None,
+            removals: 0,
             motion,
             timing: TrialTiming::default(),
             measured_q,
@@ -173,7 +183,9 @@ impl CellData {
                 );
             }
         }
-        if self.touch_phase.is_none() && self.robot_touches_bottle() {
+        if self.removal_touches.is_some() {
+            self.note_removal_touches();
+        } else if self.touch_phase.is_none() && self.robot_touches_bottle() {
             self.touch_phase = Some(self.phase);
         }
         Ok(())
@@ -225,12 +237,36 @@ impl CellData {
             .map(BinId)
     }
 
+    /// Whether bottle `index` was removed into the waste bin by a planned removal.
+    pub(crate) fn is_removed(&self, index: usize) -> bool {
+        self.removed.get(index).copied().unwrap_or(false)
+    }
+
     fn robot_touches_bottle(&self) -> bool {
         self.cell
             .items
             .bottles()
             .iter()
-            .any(|bottle| self.robot_touches(bottle.body))
+            .enumerate()
+            .any(|(i, bottle)| !self.is_removed(i) && self.robot_touches(bottle.body))
+    }
+
+    /// Notes the bottles the robot touches now, each under the phase it was first touched in.
+    fn note_removal_touches(&mut self) {
+        let touching: Vec<usize> = (0..self.cell.items.bottles().len())
+            .filter(|&i| {
+                !self.is_removed(i) && self.robot_touches(self.cell.items.bottles()[i].body)
+            })
+            .collect();
+        let phase = self.phase;
+        if let Some(touches) = self.removal_touches.as_mut() {
+            for i in touching {
+                if i >= touches.len() {
+                    touches.resize(i + 1, None);
+                }
+                touches[i].get_or_insert(phase);
+            }
+        }
     }
 
     fn robot_touches(&self, bottle: RigidBodyHandle) -> bool {
@@ -246,7 +282,9 @@ impl CellData {
             .bottles()
             .iter()
             .zip(&self.bottle_rest)
-            .filter_map(|(bottle, rest)| {
+            .enumerate()
+            .filter(|(i, _)| !self.is_removed(*i))
+            .filter_map(|(_, (bottle, rest))| {
                 let (now, rest) = (self.cell.body_pose(bottle.body)?, (*rest)?);
                 Some((now.translation.vector - rest.translation.vector).norm())
             })
@@ -260,7 +298,9 @@ impl CellData {
             .bottles()
             .iter()
             .zip(&self.bottle_rest)
-            .any(|(bottle, rest)| {
+            .enumerate()
+            .filter(|(i, _)| !self.is_removed(*i))
+            .any(|(_, (bottle, rest))| {
                 let (Some(now), Some(rest)) = (self.cell.body_pose(bottle.body), rest) else {
                     return false;
                 };

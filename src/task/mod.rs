@@ -12,6 +12,7 @@ mod observer;
 mod perceive;
 mod phase;
 mod pick_cycle;
+mod removal;
 mod runner;
 mod sorter;
 mod stream;

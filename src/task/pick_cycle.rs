@@ -20,12 +20,12 @@ use crate::station::{Percept, Sighting};
 /// Time for the grip force to build once the drive reaches its end, s.
 const GRIP_BUILD_S: f64 = 0.1;
 /// Force with which the jaws open, N.
-const OPEN_FORCE_N: f64 = 40.0;
+pub(super) const OPEN_FORCE_N: f64 = 40.0;
 /// Rest after a motion that ends where the jaws act (at the grasp, in the bin), s: the stiff
 /// servos (1000 rad/s) close their last tracking error within a few steps.
-const STOP_SETTLE_S: f64 = 0.02;
+pub(super) const STOP_SETTLE_S: f64 = 0.02;
 /// Extra opening time once the pads have cleared the part, s.
-const RELEASE_MARGIN_S: f64 = 0.02;
+pub(super) const RELEASE_MARGIN_S: f64 = 0.02;
 
 /// What one pick cycle did to its part.
 pub(crate) struct Cycle {
@@ -146,6 +146,7 @@ impl Sorter<'_> {
         let mut state = CycleState::default();
         let mut seen = seen;
         let mut phase = Phase::Perceive;
+        let mut removals = 0;
         loop {
             data.phase = phase;
             match phase {
@@ -161,7 +162,22 @@ impl Sorter<'_> {
                     let started = Instant::now();
                     let planned = self.plan(model, data, &state);
                     data.timing.planning_ms += started.elapsed().as_secs_f64() * 1e3;
-                    let (pick, place) = planned?;
+                    let (pick, place) = match (planned, &state.percept) {
+                        (Err(refusal), Some(percept))
+                            if Self::may_remove(model, &refusal, removals) =>
+                        {
+                            if !self.remove_blocker(model, data, percept)? {
+                                // The arm is home again: the refusal stands, from planning.
+                                data.phase = Phase::Plan;
+                                return Err(refusal);
+                            }
+                            // A fresh look at the station once the bottle is gone.
+                            removals += 1;
+                            phase = Phase::Perceive;
+                            continue;
+                        }
+                        (planned, _) => planned?,
+                    };
                     *chosen = Some(GraspRecord {
                         clearance_mm: pick.clearance_m * 1e3,
                         candidates: u32::try_from(pick.candidates).unwrap_or(u32::MAX),
@@ -267,7 +283,7 @@ impl Sorter<'_> {
 
 /// Plays `phase`'s part of a trajectory of two blended parts, the first played as `first`: the
 /// first part up to where the second starts, then the second to the end and a short rest.
-fn play_part(
+pub(super) fn play_part(
     model: &CellModel,
     data: &mut CellData,
     phase: Phase,

@@ -68,7 +68,7 @@ impl Sorter<'_> {
             stream: None,
             grasp: cycle.grasp,
             faults,
-            removals: 0,
+            removals: data.removals,
             passed: cycle.passed,
         }
     }
