@@ -16,7 +16,7 @@ mod sighting_percept;
 pub mod tracks;
 pub mod type_reader;
 
-pub use belt_frame::{BeltFrame, SeenItem};
+pub use belt_frame::{BeltFrame, SeenItem, TubeEnvelope};
 pub use bottle_fit::{BottleFitter, BottlePose};
 pub use camera_percept::{
     BottleSighting, CameraPerception, CameraPerceptionError, PartSighting, Sighting, StationItem,

@@ -11,7 +11,7 @@ use crate::outcome::{CollectedRecord, Failure, FailureReason, Phase};
 use crate::render::CameraRig;
 use crate::station::{
     BeltFrame, BeltPoint, ItemKind, ItemSighting, SeenItem, Sighting, Track, TrackId, TrackSet,
-    TrackerParams, ViewSpan,
+    TrackerParams, TubeEnvelope, ViewSpan,
 };
 
 /// Looks in a row that may miss a track in view before it is counted lost: one look may miss
@@ -94,11 +94,23 @@ impl BeltTracking {
         rig: &CameraRig,
         sighting: &Sighting,
     ) -> Vec<(SeenItem, TrackId)> {
+        let part_types = &model.scenario().part_types;
+        let tubes = TubeEnvelope {
+            outer_radius_m: part_types
+                .iter()
+                .map(|t| t.outer_diameter_mm / 2000.0)
+                .fold(0.0, f64::max),
+            height_m: part_types
+                .iter()
+                .map(|t| t.height_mm / 1000.0)
+                .fold(0.0, f64::max),
+        };
         let items = self.frame.items_of(
             sighting,
             &rig.calibration,
             (rig.width_px, rig.height_px),
             model.scenario().bottle.height_m,
+            &tubes,
         );
         let found: Vec<ItemSighting> = items.iter().map(|(_, s)| *s).collect();
         let ids = self.tracks.update(Self::count(data), &found, &self.view);
