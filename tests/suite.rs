@@ -260,9 +260,9 @@ fn a_scenario_files_gate_applies_unless_min_success_replaces_it() {
     assert_eq!(
         run_ok(&base),
         1,
-        "fast_belt's own gate of 0.15 fails on 0/2"
+        "fast_belt's own gate of 0.75 fails on 0/2"
     );
-    assert_eq!(report(&dir)["gate"]["min_success"], 0.15);
+    assert_eq!(report(&dir)["gate"]["min_success"], 0.75);
     // clutter's file sets no gate: whatever its trial does, the batch passes.
     let clutter = concat!(env!("CARGO_MANIFEST_DIR"), "/scenarios/suite/clutter.toml");
     let ungated = [

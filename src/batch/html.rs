@@ -416,11 +416,16 @@ mod tests {
                 decision: Some(decision("axle_a20", 0.11)),
                 cycle_time_s: 7.5,
                 grasp: None,
+                track: Some(0),
             }],
             misidentified: Some(Misidentification {
                 truth: "bottle".into(),
                 identified: "axle_b28".into(),
+                track: Some(2),
             }),
+            tracks_opened: 3,
+            passed_tracks: vec![1],
+            collected: Vec::new(),
         });
         let mut missed = TrialRecord::failed(5, 105, FailureReason::NotDetected, "nothing");
         missed.part = Some(part("axle_b32", 0.1));

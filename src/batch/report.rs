@@ -214,6 +214,10 @@ pub struct StreamSummary {
     pub bottles_passed: u32,
     /// Times a belt stopped at the photo-eye.
     pub belt_stops: u32,
+    /// Items the cell took for something they were not (a part for a bottle, a bottle for a
+    /// part, or another item for the one at the photo-eye), over all stream trials.
+    #[serde(default)]
+    pub misidentified_items: u32,
 }
 
 /// The contents of `report.json`, and the listing of trials and parts that `junit.xml` and
@@ -490,6 +494,7 @@ impl BatchReport {
                 summary.parts_sorted += s.parts_sorted;
                 summary.bottles_passed += s.bottles_passed;
                 summary.belt_stops += s.belt_stops;
+                summary.misidentified_items += s.misidentified_items();
                 for part in s.parts.iter().filter(|p| p.outcome == Outcome::Failure) {
                     let reason = part.failure.map_or("unspecified", |f| f.as_str());
                     *summary.part_failures.entry(reason.to_owned()).or_insert(0) += 1;

@@ -11,7 +11,7 @@ use crate::rng::SimRng;
 use crate::scenario::Scenario;
 use crate::sim::{
     BELT_ACCEL_M_S2, BottlePlacement, CellHooks, ConveyorHooks, FINGER_LINKS, ItemSet, PadStiction,
-    PartInstance, SimArm, SimError, Tag, World, WorldParams, body_pose, groups,
+    PartInstance, SimArm, SimError, Tag, World, WorldParams, body_pose, groups, set_body_velocity,
 };
 
 /// Why a cell could not be built.
@@ -364,8 +364,17 @@ impl Cell {
             scenario.parts.max_lateral_offset_m,
         );
         let xy = spawn_xy(scenario, lateral);
-        self.items
-            .insert_part(&mut self.world, part, xy, self.belt_top_z)
+        let index = self
+            .items
+            .insert_part(&mut self.world, part, xy, self.belt_top_z);
+        self.hand_over(self.items.parts()[index].body);
+        index
+    }
+
+    /// Starts a fed item at the belt's speed, as a feeder running with the belt hands it over.
+    fn hand_over(&mut self, body: RigidBodyHandle) {
+        let belt_m_s = f64::from(self.conveyor.speed_m_s());
+        set_body_velocity(&mut self.world, body, &Vector3::new(belt_m_s, 0.0, 0.0));
     }
 
     /// Puts a bottle on the belt at the spawn point (a stream's feeder); returns its index among
@@ -391,8 +400,11 @@ impl Cell {
             lying,
             yaw_rad: yaw,
         };
-        self.items
-            .insert_bottle(&mut self.world, bottle, placement, self.belt_top_z)
+        let index = self
+            .items
+            .insert_bottle(&mut self.world, bottle, placement, self.belt_top_z);
+        self.hand_over(self.items.bottles()[index].body);
+        index
     }
 
     /// The bodies whose colliders break the photo-eye's beam, in handle order.

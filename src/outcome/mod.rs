@@ -12,8 +12,9 @@ pub use fault_record::{FaultAction, FaultKind, FaultRecord, FaultTally};
 pub use motion_record::MotionRecord;
 pub use phase::{PHASE_COUNT, Phase, PhaseSeconds};
 pub use trial_record::{
-    DecisionRecord, FailureReason, GraspRecord, Misidentification, Outcome, PartOutcome,
-    PartRecord, PassedRecord, Perception, StreamPartRecord, StreamRecord, TrialRecord, TrialTiming,
+    CollectedRecord, DecisionRecord, FailureReason, GraspRecord, Misidentification, Outcome,
+    PartOutcome, PartRecord, PassedRecord, Perception, StreamPartRecord, StreamRecord, TrialRecord,
+    TrialTiming,
 };
 
 /// Runs one trial of a scenario. Implementations must be deterministic in `(index, seed)`.

@@ -262,6 +262,9 @@ pub struct StreamPartRecord {
     /// The grasp planned for it (absent when none was planned).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub grasp: Option<GraspRecord>,
+    /// The track by which the cell knew it at the pick station (absent when it had none).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub track: Option<u32>,
 }
 
 /// A stream trial: the parts fed, what became of each, and the belt's stops.
@@ -282,6 +285,46 @@ pub struct StreamRecord {
     /// there); absent when there was none.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub misidentified: Option<Misidentification>,
+    /// Tracks the cell opened on the belt: every item it saw, each once.
+    #[serde(default)]
+    pub tracks_opened: u32,
+    /// The tracks of the bottles let through at the photo-eye, in order.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub passed_tracks: Vec<u32>,
+    /// What reached the scenario's collector at the belt's end, each with the track the cell
+    /// matched it to (absent without a collector, or when nothing reached it).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub collected: Vec<CollectedRecord>,
+}
+
+impl StreamRecord {
+    /// Items the cell took for something they were not: the one at the photo-eye that halted
+    /// the stream, and each item in the collector that no track of the cell's expected there,
+    /// or that its track had been seen as something else.
+    pub fn misidentified_items(&self) -> u32 {
+        let collected = self.collected.iter().filter(|c| {
+            let kind = if c.truth == "bottle" {
+                "bottle"
+            } else {
+                "part"
+            };
+            c.truth != "none" && c.seen_as.as_deref() != Some(kind)
+        });
+        u32::from(self.misidentified.is_some())
+            + u32::try_from(collected.count()).unwrap_or(u32::MAX)
+    }
+}
+
+/// An item that reached the collector, and the track the cell matched it to by the encoder.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct CollectedRecord {
+    /// What it was: a part type's name or `bottle`.
+    pub truth: String,
+    /// The track whose prediction had carried it off the belt's end when it was found there,
+    /// nearest first (absent when no track had).
+    pub track: Option<u32>,
+    /// What that track had been seen as: `part` or `bottle`.
+    pub seen_as: Option<String>,
 }
 
 /// An item at the photo-eye taken for something it is not.
@@ -291,6 +334,9 @@ pub struct Misidentification {
     pub truth: String,
     /// What the camera took it for: a part type's name or `bottle`.
     pub identified: String,
+    /// The track the cell took for the item at the photo-eye (absent when it had none).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub track: Option<u32>,
 }
 
 /// One part of a trial as every reader of records sees it: a single-part trial is a list of

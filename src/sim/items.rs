@@ -1,7 +1,7 @@
 //! Inserting the movable things on the belt (axle parts, bottles) into the world, and the one
 //! registry that tracks them by body handle.
 
-use nalgebra::{Isometry3, Translation3, UnitQuaternion};
+use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use rapier3d::prelude::*;
 
 use super::{PartInstance, Tag, World};
@@ -122,6 +122,16 @@ pub fn body_pose(world: &World, body: RigidBodyHandle) -> Option<Isometry3<f64>>
         .bodies
         .get(body)
         .map(|b| pose_from_physics(b.position()))
+}
+
+/// Sets `body` moving at `velocity` (world, m/s), without spin: how a feeder hands an item over
+/// to a running belt, at the belt's own speed (put down at rest on a belt at 0.5 m/s, the belt's
+/// friction kicks a slender tube or a standing bottle over).
+pub fn set_body_velocity(world: &mut World, body: RigidBodyHandle, velocity: &Vector3<f64>) {
+    if let Some(b) = world.physics.bodies.get_mut(body) {
+        b.set_linvel(vector_to_physics(velocity), true);
+        b.set_angvel(Vector::ZERO, true);
+    }
 }
 
 /// Rapier's cylinders run along y; ours stand along z.

@@ -2,16 +2,21 @@
 //! it. The camera adapter renders the sensor's frame, runs the detector and measures the bores
 //! (`CameraPerception`, its `Sighting`); the bottle fit finds a bottle's pose from its outline;
 //! and `Percept` is what the planner is told: the part's type, place and bore, and the
-//! obstacles near it. Everything here reads images and calibrations, never the world.
+//! obstacles near it; on a belt, the tracks that keep each item's identity and belt position
+//! from look to look (`TrackSet`). Everything here reads images and calibrations, never the
+//! world.
 
+pub mod belt_frame;
 pub mod bottle_fit;
 pub mod camera_percept;
 mod frame_check;
 pub mod metrology_study;
 mod percept;
 mod sighting_percept;
+pub mod tracks;
 pub mod type_reader;
 
+pub use belt_frame::{BeltFrame, SeenItem, TubeEnvelope};
 pub use bottle_fit::{BottleFitter, BottlePose};
 pub use camera_percept::{
     BottleSighting, CameraPerception, CameraPerceptionError, PartSighting, Sighting, StationItem,
@@ -21,4 +26,7 @@ pub use frame_check::{BLANK_LEVEL, black_frame, frame_is_blank};
 pub use metrology_study::{ErrorSummary, KnownPart, MetrologyStudy, ShotErrors, StudySummary};
 pub use percept::{PerceivedObstacle, Percept, bottle_obstacle, part_obstacle};
 pub use sighting_percept::{NEIGHBOURHOOD_M, StationModel};
+pub use tracks::{
+    BeltPoint, ItemKind, ItemSighting, Track, TrackEnd, TrackId, TrackSet, TrackerParams, ViewSpan,
+};
 pub use type_reader::{TypeDecision, TypeReader};

@@ -2,6 +2,7 @@
 //! sequencing perception, planning and control each tick; the stream feeder; the oracle and
 //! camera percept adapters; and the judging of outcomes against the truth.
 
+mod at_eye;
 mod cell_data;
 mod fault_handling;
 mod feeder;
@@ -16,6 +17,7 @@ mod removal;
 mod runner;
 mod sorter;
 mod stream;
+mod tracking;
 
 pub use crate::outcome::Phase;
 pub use crate::station::{CameraPerception, StationItem, TargetRule};

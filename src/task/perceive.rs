@@ -51,16 +51,30 @@ impl Sorter<'_> {
         camera: &CameraPerception,
         rule: TargetRule,
     ) -> Result<Sighting, Failure> {
+        let belt = &model.scenario().conveyor;
+        let belt_top_z = data.cell.belt_top_z;
+        let station = Point3::new(belt.photo_eye_x_m, belt.belt_center_m[1], belt_top_z);
+        self.look_near(model, data, camera, rule, &station)
+    }
+
+    /// [`Self::look`] with `station` (world, on the belt's top) as the point the target is
+    /// chosen nearest to.
+    pub(crate) fn look_near(
+        &self,
+        model: &CellModel,
+        data: &mut CellData,
+        camera: &CameraPerception,
+        rule: TargetRule,
+        station: &Point3<f64>,
+    ) -> Result<Sighting, Failure> {
         data.await_frames(model)?;
         let scenario = model.scenario();
         let scene = Scene::from_cell(&data.cell, scenario);
         let mut rng = SimRng::derive(data.seed ^ CAMERA_SALT, data.shots);
         data.shots += 1;
-        let belt = &scenario.conveyor;
         let belt_top_z = data.cell.belt_top_z;
-        let station = Point3::new(belt.photo_eye_x_m, belt.belt_center_m[1], belt_top_z);
         let sighting = camera
-            .look(scenario, scene, &mut rng, &station, belt_top_z, rule)
+            .look(scenario, scene, &mut rng, station, belt_top_z, rule)
             .map_err(|e| Failure::new(FailureReason::PerceptionError, e.to_string()))?;
         data.timing.render_ms += sighting.render_ms;
         data.timing.detect_ms += sighting.detect_ms;

@@ -3,10 +3,11 @@
 //! [`CellModel`] and the trial's [`CellData`].
 
 use super::cell_data::CellData;
+use super::tracking::BeltTracking;
 use crate::cell::CellModel;
 use crate::outcome::Misidentification;
 use crate::planning::PickPlanner;
-use crate::station::CameraPerception;
+use crate::station::{CameraPerception, TrackId};
 
 /// The controller of one trial.
 pub(crate) struct Sorter<'a> {
@@ -21,6 +22,10 @@ pub(crate) struct Sorter<'a> {
     pub(crate) pick_time_s: Option<f64>,
     /// The item at the photo-eye the camera took for something else, when it did.
     pub(crate) misidentified: Option<Misidentification>,
+    /// A stream's items tracked along the belt (`None` in a single-part trial).
+    pub(crate) tracking: Option<BeltTracking>,
+    /// The track of the item at the photo-eye, once identified.
+    pub(crate) station_track: Option<TrackId>,
 }
 
 /// The planner's view of the cell as reset: the robot's collision shapes at home and the fixed
@@ -44,6 +49,8 @@ impl<'a> Sorter<'a> {
             grip_recipe_n: model.scenario().gripper.grip_force_n,
             pick_time_s: None,
             misidentified: None,
+            tracking: None,
+            station_track: None,
         }
     }
 }

@@ -3,34 +3,19 @@
 //! let through. What stops at the photo-eye is identified by perception: in camera mode from the
 //! image alone, in oracle mode from the world.
 
-use nalgebra::Point3;
-
+use super::at_eye::{AtEye, stream_tracking};
 use super::cell_data::CellData;
 use super::pick_cycle::Cycle;
 use super::sorter::Sorter;
 use crate::cell::CellModel;
 use crate::outcome::{
-    Failure, FailureReason, FaultAction, FaultKind, Misidentification, Outcome, StreamPartRecord,
-    StreamRecord, TrialRecord,
+    Failure, FailureReason, FaultAction, FaultKind, Outcome, StreamPartRecord, StreamRecord,
+    TrialRecord,
 };
-use crate::scenario::PartTypeId;
-use crate::station::{Sighting, StationItem, TargetRule};
-
-/// Spacing of the points along the photo-eye's beam that the camera checks, m.
-const BEAM_SAMPLE_M: f64 = 0.005;
-/// Heights above the belt of the beam's sampled lines (it spans 10-50 mm), m.
-const BEAM_HEIGHTS_M: [f64; 3] = [0.01, 0.03, 0.05];
+use crate::station::TrackEnd;
 
 fn count_u32(n: usize) -> u32 {
     u32::try_from(n).unwrap_or(u32::MAX)
-}
-
-/// What perception says stopped the belt.
-enum AtEye {
-    /// A part, to be picked; the camera's look, when it took one.
-    Part(Option<Box<Sighting>>),
-    /// A bottle, to be let through.
-    Bottle,
 }
 
 impl Sorter<'_> {
@@ -131,100 +116,6 @@ impl Sorter<'_> {
         cycle
     }
 
-    /// Points along the photo-eye's beam across the belt, world.
-    fn beam_points(model: &CellModel, data: &CellData) -> Vec<Point3<f64>> {
-        let belt = &model.scenario().conveyor;
-        let samples = (belt.width_m / BEAM_SAMPLE_M).ceil().max(1.0) as usize;
-        let mut points = Vec::with_capacity((samples + 1) * BEAM_HEIGHTS_M.len());
-        for height in BEAM_HEIGHTS_M {
-            for k in 0..=samples {
-                let y = belt.belt_center_m[1] - belt.width_m / 2.0
-                    + belt.width_m * k as f64 / samples as f64;
-                points.push(Point3::new(
-                    belt.photo_eye_x_m,
-                    y,
-                    data.cell.belt_top_z + height,
-                ));
-            }
-        }
-        points
-    }
-
-    /// Identifies what stopped the belt. The truth (which body breaks the beam) only chooses
-    /// the part the judge follows; in camera mode the decision comes from the image.
-    fn identify_at_eye(
-        &mut self,
-        model: &CellModel,
-        data: &mut CellData,
-    ) -> Result<AtEye, Failure> {
-        let at_eye = data.cell.bodies_at_photo_eye();
-        let true_part = data
-            .cell
-            .items
-            .parts()
-            .iter()
-            .position(|p| at_eye.contains(&p.body));
-        if let Some(i) = true_part {
-            self.current = i;
-        }
-        let true_bottle = data
-            .cell
-            .items
-            .bottles()
-            .iter()
-            .any(|b| at_eye.contains(&b.body));
-        let Some(camera) = self.camera else {
-            return match (true_part, true_bottle) {
-                (Some(_), _) => Ok(AtEye::Part(None)),
-                (None, true) => Ok(AtEye::Bottle),
-                (None, false) => Err(Failure::new(
-                    FailureReason::NotDetected,
-                    "the photo-eye is blocked by neither a part nor a bottle",
-                )),
-            };
-        };
-        let beam = TargetRule::AtBeam(Self::beam_points(model, data));
-        let sighting = self.look(model, data, camera, beam)?;
-        match (sighting.at_station, true_part) {
-            (Some(StationItem::Part), Some(_)) => Ok(AtEye::Part(Some(Box::new(sighting)))),
-            (Some(StationItem::Part), None) => {
-                let identified = sighting.target.as_ref().map_or("a part", |t| {
-                    model
-                        .catalogue()
-                        .part(PartTypeId(t.type_index))
-                        .name
-                        .as_str()
-                });
-                self.misidentified = Some(Misidentification {
-                    truth: "bottle".to_owned(),
-                    identified: identified.to_owned(),
-                });
-                Err(Failure::new(
-                    FailureReason::Misidentified,
-                    "the camera took the bottle at the photo-eye for a part",
-                ))
-            }
-            (Some(StationItem::Bottle(_)), None) => Ok(AtEye::Bottle),
-            (Some(StationItem::Bottle(_)), Some(i)) => {
-                self.misidentified = Some(Misidentification {
-                    truth: data.cell.items.parts()[i].instance.type_name.clone(),
-                    identified: "bottle".to_owned(),
-                });
-                Err(Failure::new(
-                    FailureReason::Misidentified,
-                    "the camera took the part at the photo-eye for a bottle",
-                ))
-            }
-            (None, _) => Err(Failure::new(
-                FailureReason::NotDetected,
-                format!(
-                    "nothing detected at the photo-eye ({} detections in view)",
-                    sighting.detections.len()
-                ),
-            )),
-        }
-    }
-
     /// A stream trial. The stream halts at its first fault, as a cell does.
     pub(crate) fn run_stream(
         mut self,
@@ -238,6 +129,8 @@ impl Sorter<'_> {
         let (mut touched, mut picked, mut displacement_m) = (false, false, 0.0f64);
         let mut first_stop_s = None;
         let mut halt: Option<Failure> = None;
+        let mut passed_tracks = Vec::new();
+        self.tracking = Some(stream_tracking(model, data));
         while parts.len() < planned as usize {
             match data.wait_for_part(model) {
                 Ok(stopped_s) => self.pick_time_s = Some(stopped_s),
@@ -258,13 +151,20 @@ impl Sorter<'_> {
                         data.bin_fill[bin.0] += 1;
                     }
                     let failed = cycle.failure.is_some();
-                    parts.push(stream_part(count_u32(parts.len()), cycle));
+                    let track = self.station_track.take();
+                    if let (Some(tracking), Some(track)) = (self.tracking.as_mut(), track) {
+                        tracking.tracks.close(track, TrackEnd::Picked);
+                    }
+                    let mut part = stream_part(count_u32(parts.len()), cycle);
+                    part.track = track.map(|t| t.0);
+                    parts.push(part);
                     if failed {
                         break;
                     }
                 }
                 Ok(AtEye::Bottle) => {
                     bottles_passed += 1;
+                    passed_tracks.extend(self.station_track.take());
                     if let Err(failure) = data.let_pass(model) {
                         halt = Some(failure);
                         break;
@@ -274,6 +174,16 @@ impl Sorter<'_> {
                     halt = Some(failure);
                     break;
                 }
+            }
+        }
+        let mut collected = Vec::new();
+        if halt.is_none()
+            && parts.iter().all(|p| p.outcome != Outcome::Failure)
+            && let Some(tracking) = &self.tracking
+        {
+            match tracking.collect(model, data, &passed_tracks) {
+                Ok(records) => collected = records,
+                Err(failure) => halt = Some(failure),
             }
         }
         let parts_sorted = count_u32(
@@ -329,6 +239,9 @@ impl Sorter<'_> {
                 belt_stops,
                 parts,
                 misidentified: self.misidentified.take(),
+                tracks_opened: self.tracking.as_ref().map_or(0, |t| t.opened()),
+                passed_tracks: passed_tracks.iter().map(|t| t.0).collect(),
+                collected,
             }),
             grasp: None,
             faults,
@@ -360,5 +273,6 @@ fn stream_part(index: u32, cycle: Cycle) -> StreamPartRecord {
         placed_bin: cycle.placed_bin,
         cycle_time_s: cycle.cycle_time_s,
         grasp: cycle.grasp,
+        track: None,
     }
 }

@@ -1,0 +1,289 @@
+//! The stream's items tracked along the belt: every look (the camera's, or in oracle mode the
+//! truth's view of the same stretch) joins the trial's [`TrackSet`] at the belt encoder's count,
+//! and the item at the photo-eye is known by its track.
+
+use nalgebra::{Point3, Vector3};
+
+use super::cell_data::CellData;
+use crate::cell::CellModel;
+use crate::control::ENCODER_M_PER_COUNT;
+use crate::outcome::{CollectedRecord, Failure, FailureReason, Phase};
+use crate::render::CameraRig;
+use crate::station::{
+    BeltFrame, BeltPoint, ItemKind, ItemSighting, SeenItem, Sighting, Track, TrackId, TrackSet,
+    TrackerParams, TubeEnvelope, ViewSpan,
+};
+
+/// Looks in a row that may miss a track in view before it is counted lost: one look may miss
+/// an item (a box the detector dropped) without its losing its identity.
+const MAX_MISSED_LOOKS: u32 = 1;
+/// The gate as a share of the feeder's spacing: two neighbours' predictions are a spacing
+/// apart, so a sighting can lie within the gate of one of them only.
+const GATE_SHARE_OF_SPACING: f64 = 0.4;
+/// The gate's most, m: what a footprint's centre may move between looks (the fit's error and
+/// an item's slip on the belt), however sparse the stream.
+const GATE_MAX_M: f64 = 0.08;
+/// An item this far from the belt's top (its centre, m) is off the belt: the truth's view of
+/// the belt in oracle mode leaves it out.
+const ON_BELT_M: f64 = 0.2;
+/// Belt travel past the belt's end after which an item carried off it has fallen into the
+/// collector below, m.
+const FALL_CLEARANCE_M: f64 = 0.15;
+/// Time for what fell to come to rest in the collector, s.
+const COLLECTOR_REST_S: f64 = 1.0;
+
+/// An item of the world the oracle's view saw: a part or a bottle by its registry index.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum TrueItem {
+    Part(usize),
+    Bottle(usize),
+}
+
+/// A stream's tracks and the frame they are kept in.
+pub(crate) struct BeltTracking {
+    pub(crate) frame: BeltFrame,
+    /// The stretch of belt the camera sees.
+    pub(crate) view: ViewSpan,
+    pub(crate) tracks: TrackSet,
+    /// The judge's bookkeeping: the true item at the photo-eye each time the cell named a
+    /// track there (never read by the cell's decisions).
+    pub(crate) truth_at_eye: Vec<(TrackId, TrueItem)>,
+}
+
+impl BeltTracking {
+    /// The tracking of a stream of `model`'s, on a belt whose top is at `belt_top_z`.
+    pub(crate) fn new(model: &CellModel, belt_top_z: f64) -> Self {
+        let scenario = model.scenario();
+        let belt = &scenario.conveyor;
+        let frame = BeltFrame {
+            station_in_world: Point3::new(belt.photo_eye_x_m, belt.belt_center_m[1], belt_top_z),
+            travel: Vector3::x_axis(),
+        };
+        // The belt's whole length when the camera cannot be made (the look fails then anyway).
+        let view = CameraRig::from_scenario(scenario).map_or(
+            ViewSpan {
+                from_m: -belt.length_m,
+                to_m: belt.length_m,
+            },
+            |rig| frame.view_span(&rig.calibration, rig.width_px, rig.height_px),
+        );
+        let gate_m = (scenario.stream.spacing_m * GATE_SHARE_OF_SPACING).min(GATE_MAX_M);
+        let tracks = TrackSet::new(TrackerParams {
+            m_per_count: ENCODER_M_PER_COUNT,
+            gate_m,
+            max_missed_looks: MAX_MISSED_LOOKS,
+        });
+        Self {
+            frame,
+            view,
+            tracks,
+            truth_at_eye: Vec::new(),
+        }
+    }
+
+    /// The encoder's count now.
+    pub(crate) fn count(data: &CellData) -> i64 {
+        data.belt.encoder_counts()
+    }
+
+    /// Joins a camera look's items to the tracks; returns each item's track.
+    pub(crate) fn see_look(
+        &mut self,
+        model: &CellModel,
+        data: &CellData,
+        rig: &CameraRig,
+        sighting: &Sighting,
+    ) -> Vec<(SeenItem, TrackId)> {
+        let part_types = &model.scenario().part_types;
+        let tubes = TubeEnvelope {
+            outer_radius_m: part_types
+                .iter()
+                .map(|t| t.outer_diameter_mm / 2000.0)
+                .fold(0.0, f64::max),
+            height_m: part_types
+                .iter()
+                .map(|t| t.height_mm / 1000.0)
+                .fold(0.0, f64::max),
+        };
+        let items = self.frame.items_of(
+            sighting,
+            &rig.calibration,
+            (rig.width_px, rig.height_px),
+            model.scenario().bottle.height_m,
+            &tubes,
+        );
+        let found: Vec<ItemSighting> = items.iter().map(|(_, s)| *s).collect();
+        let ids = self.tracks.update(Self::count(data), &found, &self.view);
+        items.into_iter().map(|(seen, _)| seen).zip(ids).collect()
+    }
+
+    /// Oracle mode: joins the items the truth shows on the belt in the camera's view, at their
+    /// true kind and place; returns each item's track.
+    pub(crate) fn see_truth(&mut self, data: &CellData) -> Vec<(TrueItem, TrackId)> {
+        let cell = &data.cell;
+        let bodies = cell
+            .items
+            .parts()
+            .iter()
+            .enumerate()
+            .map(|(i, p)| (TrueItem::Part(i), ItemKind::Part, p.body))
+            .chain(
+                cell.items
+                    .bottles()
+                    .iter()
+                    .enumerate()
+                    .map(|(i, b)| (TrueItem::Bottle(i), ItemKind::Bottle, b.body)),
+            );
+        let mut items = Vec::new();
+        for (item, kind, body) in bodies {
+            let Some(pose) = cell.body_pose(body) else {
+                continue;
+            };
+            let centre = Point3::from(pose.translation.vector);
+            let at = self.frame.belt_from_world(&centre);
+            if (centre.z - cell.belt_top_z).abs() < ON_BELT_M && self.view.contains(at.along_m) {
+                items.push((
+                    item,
+                    ItemSighting {
+                        kind,
+                        score: 1.0,
+                        at,
+                        half_length_m: 0.0,
+                    },
+                ));
+            }
+        }
+        let found: Vec<ItemSighting> = items.iter().map(|(_, s)| *s).collect();
+        let ids = self.tracks.update(Self::count(data), &found, &self.view);
+        items.into_iter().map(|(item, _)| item).zip(ids).collect()
+    }
+
+    /// The open track in view whose predicted footprint lies nearest the photo-eye's beam;
+    /// of those that span it, the one seen by the most looks.
+    pub(crate) fn nearest_beam(&self, data: &CellData) -> Option<TrackId> {
+        let count = Self::count(data);
+        let m = self.tracks.params().m_per_count;
+        self.tracks
+            .tracks()
+            .iter()
+            .filter(|t| t.is_open() && self.view.contains(t.predicted(count, m).along_m))
+            .map(|t| (t.distance_along_m(count, m, 0.0), t.looks, t.id))
+            .min_by(|a, b| a.0.total_cmp(&b.0).then(b.1.cmp(&a.1)))
+            .map(|(_, _, id)| id)
+    }
+
+    /// Where track `id` stands now, world (on the belt's top).
+    pub(crate) fn predicted_in_world(&self, data: &CellData, id: TrackId) -> Option<Point3<f64>> {
+        let at: BeltPoint = self.tracks.predicted(id, Self::count(data))?;
+        Some(self.frame.world_from_belt(&at))
+    }
+
+    /// The track `id`.
+    pub(crate) fn track(&self, id: TrackId) -> Option<&Track> {
+        self.tracks.track(id)
+    }
+
+    /// Tracks opened so far.
+    pub(crate) fn opened(&self) -> u32 {
+        u32::try_from(self.tracks.tracks().len()).unwrap_or(u32::MAX)
+    }
+
+    /// The tracks the cell let through (`passed`) that its encoder has carried past the belt's
+    /// end (`end_along_m`) by `margin_m`.
+    fn carried_off(&self, data: &CellData, passed: &[TrackId], end_along_m: f64) -> Vec<TrackId> {
+        let count = Self::count(data);
+        let m = self.tracks.params().m_per_count;
+        passed
+            .iter()
+            .copied()
+            .filter(|&id| {
+                self.tracks
+                    .track(id)
+                    .is_some_and(|t| t.predicted(count, m).along_m > end_along_m)
+            })
+            .collect()
+    }
+
+    /// In a scenario with a collector, runs the belt until the encoder says every item the
+    /// cell let through (`passed`) has been carried off its end, then matches what lies in
+    /// the collector to those tracks: each item there with the track whose truth it is, when
+    /// the cell expected it (absent otherwise), and each expected track with nothing there as
+    /// `none`.
+    pub(crate) fn collect(
+        &self,
+        model: &CellModel,
+        data: &mut CellData,
+        passed: &[TrackId],
+    ) -> Result<Vec<CollectedRecord>, Failure> {
+        let Some(collector) = model.catalogue().collector_bin() else {
+            return Ok(Vec::new());
+        };
+        let belt = &model.scenario().conveyor;
+        let end_along_m = belt.belt_center_m[0] + belt.length_m / 2.0 - belt.photo_eye_x_m;
+        let rearmost = passed
+            .iter()
+            .filter_map(|&id| self.tracks.predicted(id, Self::count(data)))
+            .map(|p| p.along_m)
+            .fold(f64::INFINITY, f64::min);
+        if rearmost.is_finite() && rearmost < end_along_m + FALL_CLEARANCE_M {
+            let travel_m = end_along_m + FALL_CLEARANCE_M - rearmost;
+            data.phase = Phase::Pass;
+            data.belt.run_at(belt.speed_m_s);
+            let start = Self::count(data);
+            let limit_s = data.cell.world.time_s() + 2.0 * travel_m / belt.speed_m_s + 2.0;
+            while ((Self::count(data) - start) as f64) * self.tracks.params().m_per_count < travel_m
+            {
+                if data.cell.world.time_s() > limit_s {
+                    return Err(Failure::new(
+                        FailureReason::Timeout,
+                        "the belt did not carry the let-through items to the collector",
+                    ));
+                }
+                data.step(model)?;
+            }
+            data.belt.run_at(0.0);
+            data.settle(model, COLLECTOR_REST_S)?;
+        }
+        let expected = self.carried_off(data, passed, end_along_m);
+        let cell = &data.cell;
+        let bin = &cell.bins[collector.0];
+        let in_collector = |body| {
+            cell.body_pose(body)
+                .is_some_and(|p| bin.contains(&p.translation.vector))
+        };
+        let parts = cell.items.parts().iter().enumerate();
+        let bottles = cell.items.bottles().iter().enumerate();
+        let arrived = parts
+            .filter(|(_, p)| in_collector(p.body))
+            .map(|(i, p)| (TrueItem::Part(i), p.instance.type_name.clone()))
+            .chain(
+                bottles
+                    .filter(|(_, b)| in_collector(b.body))
+                    .map(|(i, _)| (TrueItem::Bottle(i), "bottle".to_owned())),
+            );
+        let seen_as = |id: TrackId| self.tracks.track(id).map(|t| t.kind().as_str().to_owned());
+        let mut records = Vec::new();
+        let mut matched = Vec::new();
+        for (item, truth) in arrived {
+            let track = self
+                .truth_at_eye
+                .iter()
+                .find(|(id, t)| *t == item && expected.contains(id))
+                .map(|(id, _)| *id);
+            matched.extend(track);
+            records.push(CollectedRecord {
+                truth,
+                track: track.map(|t| t.0),
+                seen_as: track.and_then(seen_as),
+            });
+        }
+        for id in expected.into_iter().filter(|id| !matched.contains(id)) {
+            records.push(CollectedRecord {
+                truth: "none".to_owned(),
+                track: Some(id.0),
+                seen_as: seen_as(id),
+            });
+        }
+        Ok(records)
+    }
+}
