@@ -5,6 +5,7 @@
 mod cell_data;
 mod fault_handling;
 mod feeder;
+mod grip_recovery;
 pub mod judge;
 mod let_through;
 mod motion_stages;
