@@ -12,17 +12,28 @@ use super::silhouette::{Silhouette, box_residual_px};
 use crate::camera::CameraCalibration;
 
 /// A pixel this many times brighter than the belt's median (plus the offset below) is steel.
-const STEEL_OVER_BELT: f64 = 2.5;
+const STEEL_OVER_BELT: f64 = 1.8;
 /// Grey levels added to the threshold, so that a near-black belt's noise stays out.
-const STEEL_OFFSET: f64 = 12.0;
+const STEEL_OFFSET: f64 = 10.0;
 /// Blue over red above which a bright pixel is the bottle's tinted plastic, not steel.
 const TINT_RATIO: f64 = 1.12;
 /// A body with more than this share of its area enclosed dark is a standing tube's end face.
 const MAX_HOLE_SHARE: f64 = 0.08;
+/// Pixels a body is grown by before its enclosed holes are counted.
+const HOLE_CLOSING_PX: u32 = 2;
+/// A body with a bore is taken for a standing tube when a standing outline's box fits it
+/// within this many times the lying one's residual.
+const STANDING_PREFERRED: f64 = 4.0;
 /// Fewest pixels of a body worth fitting.
 const MIN_BODY_PX: usize = 60;
-/// Largest relative error of length and diameter against the nearest catalogue tube.
-const MAX_SIZE_ERROR: f64 = 0.3;
+/// Largest relative error of the pixels' extents against the fitted tube's.
+const MAX_SIZE_ERROR: f64 = 0.35;
+/// Largest RMS difference of the outline's box and the pixels' box, as a share of the
+/// pixels' box diagonal.
+const MAX_BOX_RESIDUAL: f64 = 0.08;
+/// Yaw steps either side of each extent's direction, and their size, rad.
+const YAW_STEPS: i32 = 4;
+const YAW_STEP_RAD: f64 = 0.035;
 /// Points on each end ring of the outline.
 const RING_POINTS: usize = 32;
 
@@ -111,13 +122,19 @@ impl LyingPartFinder {
         bodies
             .into_iter()
             .filter(|body| body.len() >= MIN_BODY_PX)
-            .filter(|body| hole_share(body) <= MAX_HOLE_SHARE)
             .filter_map(|body| {
                 let pixels: Vec<[f64; 2]> = body
                     .iter()
                     .map(|&(x, y)| [f64::from(x + roi.0) + 0.5, f64::from(y + roi.1) + 0.5])
                     .collect();
-                self.fit(&pixels)
+                let lying = self.fit(&pixels)?;
+                // A bore inside the body is a standing tube's end face, unless the body is a
+                // lying tube seen along its axis: then a lying outline explains it better.
+                let standing = hole_share(&body) > MAX_HOLE_SHARE
+                    && self
+                        .standing_residual_px(&pixels)
+                        .is_some_and(|r| r <= STANDING_PREFERRED * lying.residual_px);
+                (!standing).then_some(lying)
             })
             .filter(|part| {
                 let d = part.centre_in_world - around_in_world;
@@ -162,100 +179,112 @@ impl LyingPartFinder {
         (window.2 > window.0 && window.3 > window.1).then_some(window)
     }
 
-    /// The lying tube that explains a body's pixels, if one of the catalogue's sizes fits.
+    /// The lying tube that explains a body's pixels, if one of the catalogue's sizes fits: each
+    /// size, its axis along either extent of the pixels (and a few degrees either side), is
+    /// slid over the belt until its outline's box is centred on the pixels' box, and the
+    /// hypothesis whose box matches best is kept, as the bottle fit keeps its best pose.
     fn fit(&self, pixels: &[[f64; 2]]) -> Option<LyingPart> {
-        // Lay the pixels on the plane through the axis; its height depends on the diameter,
-        // which the first pass measures.
         let mean_diameter_m =
             self.sizes.iter().map(|s| s.diameter_m).sum::<f64>() / self.sizes.len().max(1) as f64;
-        let mut radius_m = mean_diameter_m / 2.0;
-        let mut shape = None;
-        for _ in 0..3 {
+        let plane_points = |radius_m: f64| -> Vec<Vector2<f64>> {
             let z = self.belt_top_z_m + radius_m;
-            let points: Vec<Vector2<f64>> = pixels
+            pixels
                 .iter()
                 .filter_map(|p| self.calibration.pixel_to_height(p[0], p[1], z).ok())
                 .map(|p| Vector2::new(p.x, p.y))
-                .collect();
-            let measured = extents(&points)?;
-            let (size_index, along_major, error) =
-                self.nearest_size(measured.major_m, measured.minor_m)?;
-            if error > MAX_SIZE_ERROR {
-                return None;
-            }
-            let diameter_m = if along_major {
-                measured.minor_m
-            } else {
-                measured.major_m
-            };
-            radius_m = diameter_m / 2.0;
-            shape = Some((measured, size_index, along_major));
-        }
-        let (measured, size_index, along_major) = shape?;
-        let (length_m, diameter_m, axis) = if along_major {
-            (measured.major_m, measured.minor_m, measured.major_axis)
-        } else {
-            (
-                measured.minor_m,
-                measured.major_m,
-                Vector2::new(-measured.major_axis.y, measured.major_axis.x),
-            )
+                .collect()
         };
-        let yaw_rad = axis.y.atan2(axis.x).rem_euclid(std::f64::consts::PI);
-        // Place the outline where its box is centred on the pixels' box.
-        let mut pixel_box = [
-            f64::INFINITY,
-            f64::INFINITY,
-            f64::NEG_INFINITY,
-            f64::NEG_INFINITY,
-        ];
-        for p in pixels {
-            pixel_box = [
-                pixel_box[0].min(p[0] - 0.5),
-                pixel_box[1].min(p[1] - 0.5),
-                pixel_box[2].max(p[0] + 0.5),
-                pixel_box[3].max(p[1] + 0.5),
-            ];
-        }
-        let outline = tube_outline(length_m, diameter_m / 2.0);
-        let mid_z = self.belt_top_z_m + diameter_m / 2.0;
+        let measured = extents(&plane_points(mean_diameter_m / 2.0))?;
+        let major_yaw = measured.major_axis.y.atan2(measured.major_axis.x);
+        let pixel_box = pixel_box(pixels);
         let centre_px = [
             (pixel_box[0] + pixel_box[2]) / 2.0,
             (pixel_box[1] + pixel_box[3]) / 2.0,
         ];
-        let pose_at = |x, y| lying_pose(Point3::new(x, y, mid_z), yaw_rad);
-        let ([x, y], b) = outline.slide_to_centre(&self.calibration, centre_px, mid_z, pose_at)?;
-        Some(LyingPart {
-            centre_in_world: Point3::new(x, y, mid_z),
-            yaw_rad,
-            length_m,
-            diameter_m,
-            size_index,
-            residual_px: box_residual_px(&b, &pixel_box),
-        })
+        let mut best: Option<LyingPart> = None;
+        for (size_index, size) in self.sizes.iter().enumerate() {
+            let outline = tube_outline(size.length_m, size.diameter_m / 2.0);
+            let mid_z = self.belt_top_z_m + size.diameter_m / 2.0;
+            for turn in [0.0, std::f64::consts::FRAC_PI_2] {
+                for step in -YAW_STEPS..=YAW_STEPS {
+                    let yaw_rad = (major_yaw + turn + f64::from(step) * YAW_STEP_RAD)
+                        .rem_euclid(std::f64::consts::PI);
+                    let pose_at = |x, y| lying_pose(Point3::new(x, y, mid_z), yaw_rad);
+                    let Some(([x, y], b)) =
+                        outline.slide_to_centre(&self.calibration, centre_px, mid_z, pose_at)
+                    else {
+                        continue;
+                    };
+                    let residual_px = box_residual_px(&b, &pixel_box);
+                    if best.is_none_or(|best| residual_px < best.residual_px) {
+                        best = Some(LyingPart {
+                            centre_in_world: Point3::new(x, y, mid_z),
+                            yaw_rad,
+                            length_m: size.length_m,
+                            diameter_m: size.diameter_m,
+                            size_index,
+                            residual_px,
+                        });
+                    }
+                }
+            }
+        }
+        // The pixels' own extents, laid on the plane through the fitted axis, must agree with
+        // the size chosen: a body of another shape is no tube of the catalogue.
+        let best = best?;
+        let measured = extents(&plane_points(best.diameter_m / 2.0))?;
+        let (long, short) = (
+            best.length_m.max(best.diameter_m),
+            best.length_m.min(best.diameter_m),
+        );
+        let error = ((measured.major_m - long) / long)
+            .abs()
+            .max(((measured.minor_m - short) / short).abs());
+        let box_size = (pixel_box[2] - pixel_box[0]).hypot(pixel_box[3] - pixel_box[1]);
+        (error <= MAX_SIZE_ERROR && best.residual_px <= MAX_BOX_RESIDUAL * box_size).then_some(best)
     }
+}
 
-    /// The catalogue size nearest an outline `major_m` by `minor_m`: its index, whether the
-    /// length lies along the major extent, and the larger relative error of the two.
-    fn nearest_size(&self, major_m: f64, minor_m: f64) -> Option<(usize, bool, f64)> {
+impl LyingPartFinder {
+    /// How well the best standing tube of the catalogue explains the pixels' box: the RMS
+    /// difference of its outline's box, pixels.
+    fn standing_residual_px(&self, pixels: &[[f64; 2]]) -> Option<f64> {
+        let pixel_box = pixel_box(pixels);
+        let centre_px = [
+            (pixel_box[0] + pixel_box[2]) / 2.0,
+            (pixel_box[1] + pixel_box[3]) / 2.0,
+        ];
         self.sizes
             .iter()
-            .enumerate()
-            .flat_map(|(i, size)| {
-                [true, false].map(|along_major| {
-                    let (length, diameter) = if along_major {
-                        (major_m, minor_m)
-                    } else {
-                        (minor_m, major_m)
-                    };
-                    let error = ((length - size.length_m) / size.length_m)
-                        .abs()
-                        .max(((diameter - size.diameter_m) / size.diameter_m).abs());
-                    (i, along_major, error)
-                })
+            .filter_map(|size| {
+                let outline = tube_outline(size.length_m, size.diameter_m / 2.0);
+                let mid_z = self.belt_top_z_m + size.length_m / 2.0;
+                let pose_at = |x, y| Isometry3::translation(x, y, mid_z);
+                let (_, b) =
+                    outline.slide_to_centre(&self.calibration, centre_px, mid_z, pose_at)?;
+                Some(box_residual_px(&b, &pixel_box))
             })
-            .min_by(|a, b| a.2.total_cmp(&b.2))
+            .min_by(f64::total_cmp)
     }
+}
+
+/// The box (`[x0, y0, x1, y1]`, pixels) of pixel centres, to their outer edges.
+fn pixel_box(pixels: &[[f64; 2]]) -> [f64; 4] {
+    let mut b = [
+        f64::INFINITY,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        f64::NEG_INFINITY,
+    ];
+    for p in pixels {
+        b = [
+            b[0].min(p[0] - 0.5),
+            b[1].min(p[1] - 0.5),
+            b[2].max(p[0] + 0.5),
+            b[3].max(p[1] + 0.5),
+        ];
+    }
+    b
 }
 
 /// A lying tube's pose with the middle of its axis at `centre`, the axis at `yaw_rad`.
@@ -373,10 +402,18 @@ fn hole_share(body: &[(u32, u32)]) -> f64 {
     for &(x, y) in body {
         (x0, y0, x1, y1) = (x0.min(x), y0.min(y), x1.max(x), y1.max(y));
     }
-    let (w, h) = (x1 - x0 + 1, y1 - y0 + 1);
+    // The body grown by a pixel or two, with a free border around it: a ring that noise or a
+    // stain broke somewhere still closes around its bore.
+    let grow = HOLE_CLOSING_PX;
+    let (w, h) = (x1 - x0 + 1 + 2 * (grow + 1), y1 - y0 + 1 + 2 * (grow + 1));
     let mut inside = vec![false; (w * h) as usize];
     for &(x, y) in body {
-        inside[((y - y0) * w + (x - x0)) as usize] = true;
+        let (cx, cy) = (x - x0 + grow + 1, y - y0 + grow + 1);
+        for yy in cy - grow..=cy + grow {
+            for xx in cx - grow..=cx + grow {
+                inside[(yy * w + xx) as usize] = true;
+            }
+        }
     }
     // Flood the box's free pixels from its border; what stays unreached is enclosed.
     let mut reached = vec![false; inside.len()];
