@@ -169,7 +169,7 @@ fn lying_tubes_are_found_over_the_camera_envelope_and_the_tube_family() {
             [x - belt.length_m / 2.0, x + belt.length_m / 2.0],
             [y - belt.width_m / 2.0, y + belt.width_m / 2.0],
         ];
-        let finder = LyingPartFinder::new(rig.calibration.clone(), belt_top_z, belt_xy, sizes);
+        let finder = LyingPartFinder::new(rig.calibration, belt_top_z, belt_xy, sizes);
         let station = Point3::new(belt.photo_eye_x_m, belt.belt_center_m[1], belt_top_z);
         let Some(part) = finder.find(&image, &station, 0.3) else {
             misses.push(format!(
@@ -274,7 +274,7 @@ fn a_standing_tube_shows_its_bore_and_is_not_taken_for_a_lying_one() {
             [x - belt.length_m / 2.0, x + belt.length_m / 2.0],
             [y - belt.width_m / 2.0, y + belt.width_m / 2.0],
         ];
-        let finder = LyingPartFinder::new(rig.calibration.clone(), belt_top_z, belt_xy, sizes);
+        let finder = LyingPartFinder::new(rig.calibration, belt_top_z, belt_xy, sizes);
         let station = Point3::new(belt.photo_eye_x_m, belt.belt_center_m[1], belt_top_z);
         let found = finder.find(&image, &station, 0.3);
         assert!(

@@ -385,7 +385,7 @@ impl Sorter<'_> {
                 [x - belt.length_m / 2.0, x + belt.length_m / 2.0],
                 [y - belt.width_m / 2.0, y + belt.width_m / 2.0],
             ];
-            let calibration = camera.rig().calibration.clone();
+            let calibration = camera.rig().calibration;
             let finder = LyingPartFinder::new(calibration, data.cell.belt_top_z, belt_xy_m, sizes);
             return finder
                 .find(&image, &station, LYING_SEARCH_M)
