@@ -493,11 +493,11 @@ mod tests {
 
     #[test]
     fn a_ring_encloses_its_hole_and_a_bar_does_not() {
-        let ring: Vec<(u32, u32)> = (0..21u32)
-            .flat_map(|y| (0..21u32).map(move |x| (x, y)))
+        let ring: Vec<(u32, u32)> = (0..25u32)
+            .flat_map(|y| (0..25u32).map(move |x| (x, y)))
             .filter(|&(x, y)| {
-                let r2 = (f64::from(x) - 10.0).powi(2) + (f64::from(y) - 10.0).powi(2);
-                (25.0..=100.0).contains(&r2)
+                let r2 = (f64::from(x) - 12.0).powi(2) + (f64::from(y) - 12.0).powi(2);
+                (64.0..=144.0).contains(&r2)
             })
             .collect();
         assert!(hole_share(&ring) > 0.2);
