@@ -144,6 +144,7 @@ fn faults_are_tallied_per_kind_and_absent_from_a_report_without_them() {
         actions: vec![FaultAction::SawDrop],
         recovered,
         lost_parts,
+        saw_lying_part: None,
     };
     records[0].faults.push(fault(FaultKind::Gripper, true, 0));
     records[1].faults.push(fault(FaultKind::Gripper, false, 1));

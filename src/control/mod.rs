@@ -5,6 +5,7 @@
 mod backoff;
 mod belt_drive;
 mod fault_plan;
+mod grip_watch;
 mod gripper_drive;
 mod hold_monitor;
 mod photo_eye_signal;
@@ -16,6 +17,7 @@ pub use fault_plan::{
     ARM_MOTIONS, ArmStop, BeltFault, BlackoutFrames, CameraBlackout, FaultPlan, GripFault,
     PhotoEyeFaults,
 };
+pub use grip_watch::{GripReading, GripWatch, JAWS_PAST_PART_M, WEAK_FORCE_SHARE, WEAK_READINGS};
 pub use gripper_drive::GripperDrive;
 pub use hold_monitor::HoldMonitor;
 pub use photo_eye_signal::PhotoEyeSignal;

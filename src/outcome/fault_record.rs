@@ -53,6 +53,14 @@ pub enum FaultAction {
     FoundOnBelt,
     /// Picked the part again.
     Repicked,
+    /// Saw the jaws' force fall below what was commanded while they still held the part.
+    SawWeakGrip,
+    /// Opened and closed the jaws again on the part where it stood, which restores the force.
+    Regripped,
+    /// Carried the weakly held part back over the belt and set it down where it was grasped.
+    SetDown,
+    /// Saw the part lying on the belt (the pose is in the record's `saw_lying_part`).
+    SawLyingPart,
     /// Found the dropped part neither in the jaws nor on the belt, and counted it lost.
     CountedLost,
     /// Asked the camera again after a wait, each wait longer than the last.
@@ -94,6 +102,25 @@ pub struct FaultRecord {
     /// Parts it cost: dropped off the belt and outside every bin, or run off the belt unseen.
     #[serde(default)]
     pub lost_parts: u32,
+    /// A part seen lying on the belt after the fault, as perception fitted it (a lying part
+    /// is not picked: the planner grasps standing tubes).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub saw_lying_part: Option<LyingPartRecord>,
+}
+
+/// A tube perception saw lying on the belt.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct LyingPartRecord {
+    /// The middle of its axis in the world, m.
+    pub centre_m: [f64; 3],
+    /// Its axis on the belt, from the world's x axis, in [0, 180), degrees.
+    pub axis_yaw_deg: f64,
+    /// Its length, mm.
+    pub length_mm: f64,
+    /// Its outer diameter, mm.
+    pub diameter_mm: f64,
+    /// The catalogue type its size matches best.
+    pub part_type: String,
 }
 
 /// Per fault kind over a batch: faults injected, recovered from, and parts lost to them.
@@ -140,6 +167,7 @@ mod tests {
             actions: vec![FaultAction::NoneNeeded],
             recovered,
             lost_parts,
+            saw_lying_part: None,
         }
     }
 

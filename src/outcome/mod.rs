@@ -8,7 +8,7 @@ mod phase;
 mod trial_record;
 
 pub use failure::{Failure, fail};
-pub use fault_record::{FaultAction, FaultKind, FaultRecord, FaultTally};
+pub use fault_record::{FaultAction, FaultKind, FaultRecord, FaultTally, LyingPartRecord};
 pub use motion_record::MotionRecord;
 pub use phase::{PHASE_COUNT, Phase, PhaseSeconds};
 pub use trial_record::{

@@ -298,6 +298,25 @@ impl PickPlanner {
         }
     }
 
+    /// `percept`'s part as the jaws carry it: a cylinder standing in the TCP frame, its
+    /// bottom the grasp height below the TCP.
+    pub fn carried_for(&self, percept: &Percept) -> Carried {
+        Carried {
+            tcp_from_shape: Isometry3::from_parts(
+                Translation3::new(
+                    0.0,
+                    0.0,
+                    -(percept.part_height_m / 2.0 - GRASP_TCP_ABOVE_BOTTOM_M),
+                ),
+                UnitQuaternion::from_euler_angles(std::f64::consts::FRAC_PI_2, 0.0, 0.0),
+            ),
+            shape: SharedShape::cylinder(
+                (percept.part_height_m / 2.0) as f32,
+                percept.part_outer_radius_m as f32,
+            ),
+        }
+    }
+
     /// The first collision-free place of `percept`'s part into `bin`'s next free slot (after
     /// `placed_before` parts), lifted along `pick`'s lift and carried within what the grip on
     /// `payload` holds.
@@ -313,20 +332,7 @@ impl PickPlanner {
         let floor = bin.floor_center + bin_slot(bin, placed_before);
         let place_z = floor.z + 0.012 + GRASP_TCP_ABOVE_BOTTOM_M;
         let above_z = floor.z + bin.wall_height + 0.04 + GRASP_TCP_ABOVE_BOTTOM_M;
-        let carried = Carried {
-            tcp_from_shape: Isometry3::from_parts(
-                Translation3::new(
-                    0.0,
-                    0.0,
-                    -(percept.part_height_m / 2.0 - GRASP_TCP_ABOVE_BOTTOM_M),
-                ),
-                UnitQuaternion::from_euler_angles(std::f64::consts::FRAC_PI_2, 0.0, 0.0),
-            ),
-            shape: SharedShape::cylinder(
-                (percept.part_height_m / 2.0) as f32,
-                percept.part_outer_radius_m as f32,
-            ),
-        };
+        let carried = self.carried_for(percept);
         let spot = PlaceSpot {
             xy: [floor.x, floor.y],
             above_z,

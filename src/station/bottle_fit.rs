@@ -4,16 +4,13 @@
 
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 
+use super::silhouette::{Silhouette, box_residual_px};
 use crate::camera::CameraCalibration;
 use crate::render::mesh::Mesh;
 use crate::scenario::BottleSection;
 
 /// Yaw steps of the lying-bottle search over a full turn.
 const LYING_YAW_STEPS: usize = 180;
-/// Fixed-point iterations that move a hypothesis until its box centre meets the detection.
-const FIT_ITERATIONS: usize = 12;
-/// A hypothesis whose last move was shorter than this has converged, m.
-const CONVERGED_M: f64 = 1e-6;
 /// A hypothesis within this box residual of the best one is kept as well, pixels.
 const AMBIGUITY_PX: f64 = 2.0;
 
@@ -34,72 +31,28 @@ pub struct BottleFitter {
     calibration: CameraCalibration,
     radius_m: f64,
     height_m: f64,
-    /// Vertices of the bottle's mesh in its own frame, each once (its silhouette model), as
-    /// columns of x, y and z: the box is their projection's extent, taken in vector lanes.
-    xs: Vec<f64>,
-    ys: Vec<f64>,
-    zs: Vec<f64>,
+    /// The vertices of the bottle's mesh in its own frame.
+    silhouette: Silhouette,
 }
 
 impl BottleFitter {
     /// A fitter for `bottle` seen by `calibration`.
     pub fn new(calibration: CameraCalibration, bottle: &BottleSection) -> Self {
-        // The mesh repeats vertices per face; the silhouette needs each point once.
-        let mut points: Vec<Point3<f64>> = Mesh::bottle(bottle.radius_m, bottle.height_m)
-            .vertices
-            .iter()
-            .map(|v| v.position)
-            .collect();
-        points.sort_by(|a, b| {
-            (a.x, a.y, a.z)
-                .partial_cmp(&(b.x, b.y, b.z))
-                .unwrap_or(std::cmp::Ordering::Equal)
-        });
-        points.dedup();
+        // The mesh repeats vertices per face; the silhouette keeps each point once.
+        let mesh = Mesh::bottle(bottle.radius_m, bottle.height_m);
         Self {
             calibration,
             radius_m: bottle.radius_m,
             height_m: bottle.height_m,
-            xs: points.iter().map(|p| p.x).collect(),
-            ys: points.iter().map(|p| p.y).collect(),
-            zs: points.iter().map(|p| p.z).collect(),
+            silhouette: Silhouette::of_points(mesh.vertices.iter().map(|v| v.position)),
         }
     }
 
     /// The box (`[x0, y0, x1, y1]`, pixels) the bottle at `world_from_bottle` projects to, or
     /// `None` when a point of it is not in front of the camera.
-    ///
-    /// The fit projects the mesh a few thousand times per detection, so the bottle-to-camera
-    /// transform is composed once and applied as a matrix to every point.
     pub fn projected_box(&self, world_from_bottle: &Isometry3<f64>) -> Option<[f64; 4]> {
-        let camera = &self.calibration;
-        let camera_from_bottle = camera.world_from_camera.inverse() * world_from_bottle;
-        let m = camera_from_bottle
-            .rotation
-            .to_rotation_matrix()
-            .into_inner();
-        let t = camera_from_bottle.translation.vector;
-        let (fx, fy, cx, cy) = (camera.fx_px, camera.fy_px, camera.cx_px, camera.cy_px);
-        let mut b = [
-            f64::INFINITY,
-            f64::INFINITY,
-            f64::NEG_INFINITY,
-            f64::NEG_INFINITY,
-        ];
-        let mut nearest_z = f64::INFINITY;
-        for ((&x, &y), &z) in self.xs.iter().zip(&self.ys).zip(&self.zs) {
-            let cz = m[(2, 0)] * x + m[(2, 1)] * y + m[(2, 2)] * z + t.z;
-            let cx_m = m[(0, 0)] * x + m[(0, 1)] * y + m[(0, 2)] * z + t.x;
-            let cy_m = m[(1, 0)] * x + m[(1, 1)] * y + m[(1, 2)] * z + t.y;
-            let u = fx * cx_m / cz + cx;
-            let v = fy * cy_m / cz + cy;
-            nearest_z = if cz < nearest_z { cz } else { nearest_z };
-            b[0] = if u < b[0] { u } else { b[0] };
-            b[1] = if v < b[1] { v } else { b[1] };
-            b[2] = if u > b[2] { u } else { b[2] };
-            b[3] = if v > b[3] { v } else { b[3] };
-        }
-        (nearest_z > 0.0).then_some(b)
+        self.silhouette
+            .projected_box(&self.calibration, world_from_bottle)
     }
 
     /// The pose of a bottle standing (`lying` false) or lying at `yaw_rad` with its middle over
@@ -145,34 +98,14 @@ impl BottleFitter {
                 } else {
                     self.height_m / 2.0
                 };
-            let on_mid_plane = |p: [f64; 2]| self.calibration.pixel_to_height(p[0], p[1], mid_z);
-            let Ok(want) = on_mid_plane(centre) else {
+            let pose_at = |x, y| self.pose_at(lying, yaw, x, y, belt_top_z_m);
+            let Some(([x, y], b)) =
+                self.silhouette
+                    .slide_to_centre(&self.calibration, centre, mid_z, pose_at)
+            else {
                 continue;
             };
-            let (mut x, mut y) = (want.x, want.y);
-            let mut fitted = None;
-            for _ in 0..FIT_ITERATIONS {
-                let Some(b) = self.projected_box(&self.pose_at(lying, yaw, x, y, belt_top_z_m))
-                else {
-                    break;
-                };
-                fitted = Some(b);
-                // Move by the centre offset, measured on the plane through the bottle's middle.
-                let Ok(at) = on_mid_plane([(b[0] + b[2]) / 2.0, (b[1] + b[3]) / 2.0]) else {
-                    break;
-                };
-                let (dx, dy) = (want.x - at.x, want.y - at.y);
-                x += dx;
-                y += dy;
-                if dx.hypot(dy) < CONVERGED_M {
-                    break;
-                }
-            }
-            let Some(b) = fitted else {
-                continue;
-            };
-            let residual_px =
-                ((0..4).map(|k| (b[k] - box_px[k]).powi(2)).sum::<f64>() / 4.0).sqrt();
+            let residual_px = box_residual_px(&b, box_px);
             poses.push(BottlePose {
                 world_from_bottle: self.pose_at(lying, yaw, x, y, belt_top_z_m),
                 lying,

@@ -1,8 +1,8 @@
 //! The perception station: what the cell knows of the pick station, and how it comes to know
 //! it. The camera adapter renders the sensor's frame, runs the detector and measures the bores
-//! (`CameraPerception`, its `Sighting`); the bottle fit finds a bottle's pose from its outline;
-//! and `Percept` is what the planner is told: the part's type, place and bore, and the
-//! obstacles near it; on a belt, the tracks that keep each item's identity and belt position
+//! (`CameraPerception`, its `Sighting`); the bottle fit finds a bottle's pose from its outline,
+//! and the lying-part finder a tube fallen on its side; and `Percept` is what the planner is
+//! told: the part's type, place and bore, and the obstacles near it; on a belt, the tracks that keep each item's identity and belt position
 //! from look to look (`TrackSet`). Everything here reads images and calibrations, never the
 //! world.
 
@@ -10,10 +10,12 @@ pub mod belt_frame;
 pub mod bottle_fit;
 pub mod camera_percept;
 mod frame_check;
+pub mod lying_part;
 pub mod metrology_study;
 mod percept;
 mod sighting_percept;
 pub mod tracks;
+mod silhouette;
 pub mod type_reader;
 
 pub use belt_frame::{BeltFrame, SeenItem, TubeEnvelope};
@@ -23,9 +25,11 @@ pub use camera_percept::{
     TargetRule, find_in_window, measure_found, measure_in_window, part_window,
 };
 pub use frame_check::{BLANK_LEVEL, black_frame, frame_is_blank};
+pub use lying_part::{LyingPart, LyingPartFinder, TubeSize};
 pub use metrology_study::{ErrorSummary, KnownPart, MetrologyStudy, ShotErrors, StudySummary};
 pub use percept::{PerceivedObstacle, Percept, bottle_obstacle, part_obstacle};
 pub use sighting_percept::{NEIGHBOURHOOD_M, StationModel};
+pub use silhouette::{Silhouette, box_residual_px};
 pub use tracks::{
     BeltPoint, ItemKind, ItemSighting, Track, TrackEnd, TrackId, TrackSet, TrackerParams, ViewSpan,
 };

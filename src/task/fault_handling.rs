@@ -2,26 +2,16 @@
 //! (the eye's output, the belt's encoder, the jaws' opening, the camera's frames), never from
 //! the truth; and the bookkeeping that turns them into the record's fault list.
 
-use nalgebra::{Isometry3, Translation3};
-
 use super::cell_data::CellData;
-use super::sorter::Sorter;
 use crate::cell::CellModel;
-use crate::control::{Backoff, BlackoutFrames, FaultPlan, HoldMonitor, PhotoEyeSignal};
-use crate::kinematics::tcp_pose;
+use crate::control::{Backoff, BlackoutFrames, FaultPlan, GripWatch, PhotoEyeSignal};
+use crate::kinematics::JointVector;
 use crate::outcome::{Failure, FailureReason, FaultAction, FaultKind, FaultRecord, Phase, fail};
-use crate::planning::{CollisionChecker, JointTrajectory, PART_OBSTACLE, straight_line};
+use crate::planning::{Carried, CollisionChecker, JointTrajectory, PART_OBSTACLE};
 use crate::station::{black_frame, frame_is_blank};
 
-/// How far the jaws may close past the part's diameter before the controller takes the part
-/// for gone, m: the same margin the grasp check uses.
-const JAWS_PAST_PART_M: f64 = 0.006;
 /// A belt this far behind its commands has a fault the controller can see, m.
 const BELT_SHORTFALL_M: f64 = 0.01;
-/// Rest after a dropped part, before the controller looks for it, s.
-const DROP_SETTLE_S: f64 = 0.5;
-/// How far the jaws rise straight up after a drop before the arm heads home, m.
-const DROP_RAISE_M: f64 = 0.1;
 
 /// A trial's faults: the plan, the events they strike by, and the records so far.
 #[derive(Debug, Clone)]
@@ -42,8 +32,22 @@ pub(crate) struct FaultLog {
     pub(crate) checker: Option<CollisionChecker>,
     pub(crate) open_m: f64,
     pub(crate) held_radius_m: f64,
-    /// When and in which phase the jaws showed the held part gone.
+    /// When and in which phase the jaws showed the held part gone, or its grip weak.
     pub(crate) drop_seen: Option<(f64, Phase)>,
+    /// The force each jaw reported when the grip was seen weak on the way up or over, N.
+    pub(crate) weak_grip_n: Option<f64>,
+    /// When and at what force the grip was seen weak over the bin (the place went on).
+    pub(crate) weak_in_place: Option<(f64, f64)>,
+    /// When and at what force the grip was found weak at the grasp and taken again.
+    pub(crate) regripped: Option<(f64, f64)>,
+    /// The watch over the jaws' force and opening, armed by a grip fault in the scenario.
+    pub(crate) grip_watch: Option<GripWatch>,
+    /// The joint angles at which the jaws last closed on the part, and those above it where
+    /// the pick's straight descent began.
+    pub(crate) grasp_q: Option<JointVector>,
+    pub(crate) pregrasp_q: Option<JointVector>,
+    /// The part the cycle carries, as its planner saw it.
+    pub(crate) carried: Option<Carried>,
     belt_noted: bool,
     /// What the controller did about a trigger with nothing at the station.
     pub(crate) false_trigger_actions: Vec<FaultAction>,
@@ -65,6 +69,13 @@ impl FaultLog {
             open_m: 0.0,
             held_radius_m: 0.0,
             drop_seen: None,
+            weak_grip_n: None,
+            weak_in_place: None,
+            regripped: None,
+            grip_watch: None,
+            grasp_q: None,
+            pregrasp_q: None,
+            carried: None,
             belt_noted: false,
             false_trigger_actions: Vec::new(),
         }
@@ -104,6 +115,7 @@ impl FaultLog {
             actions,
             recovered,
             lost_parts,
+            saw_lying_part: None,
         });
     }
 }
@@ -248,12 +260,19 @@ impl CellData {
             self.gripper.target_m()
         };
         let ignore = [PART_OBSTACLE];
+        // The carried part counts as the planner counted it: from where the move over to the
+        // bin starts; on the way up it rises straight off the belt it stood on.
+        let carried = self
+            .faults
+            .carried
+            .as_ref()
+            .filter(|_| holding && phase != Phase::Lift);
         let hit = self.faults.checker.as_ref().and_then(|checker| {
             checker
-                .check_configuration(&q_now, finger_m, None, &ignore)
+                .check_configuration(&q_now, finger_m, carried, &ignore)
                 .or_else(|| {
                     checker
-                        .check_span(trajectory, (at_s, to_s), finger_m, None, &ignore)
+                        .check_span(trajectory, (at_s, to_s), finger_m, carried, &ignore)
                         .map(|hit| (hit.link, hit.obstacle))
                 })
         });
@@ -277,32 +296,6 @@ impl CellData {
                 )
             }
         }
-    }
-
-    /// Watches the held part: the controller's own sensor, the jaws' opening, shows a part
-    /// that has left them. The judge's monitor of the part's drift ends the trial on a slip
-    /// unless an injected fault weakened the grip, when where the part comes to rest decides.
-    pub(crate) fn watch_grip(
-        &mut self,
-        model: &CellModel,
-        phase: Phase,
-        hold: &HoldMonitor,
-        tcp_from_part: &Isometry3<f64>,
-    ) -> Result<(), Failure> {
-        if model.scenario().faults.gripper.is_some() {
-            let gap = self.cell.arm.finger_positions_m(&self.cell.world);
-            if gap[0] + gap[1] < 2.0 * self.faults.held_radius_m - JAWS_PAST_PART_M {
-                self.faults.drop_seen = Some((self.cell.world.time_s(), phase));
-                return fail(
-                    FailureReason::Dropped,
-                    format!("the jaws closed on nothing during {phase}: the part fell"),
-                );
-            }
-            if self.gripper.fault_struck() {
-                return Ok(());
-            }
-        }
-        hold.check(phase, tcp_from_part)
     }
 
     /// Where the handled part truly rests, in words, for a lost part's record (the judge's
@@ -331,11 +324,43 @@ impl CellData {
         let now = self.cell.world.time_s();
         // A drop the single-part recovery did not take up (a stream halts at it).
         if let Some((at_s, phase)) = self.faults.drop_seen.take() {
-            let detail =
-                format!("the grip weakened and the part fell during {phase}; the stream halted");
-            let actions = vec![FaultAction::SawDrop];
+            let (detail, action) = match self.faults.weak_grip_n.take() {
+                Some(force_n) => (
+                    format!(
+                        "the grip weakened to {force_n:.1} N during {phase}; the stream halted"
+                    ),
+                    FaultAction::SawWeakGrip,
+                ),
+                None => (
+                    format!(
+                        "the grip weakened and the part fell during {phase}; the stream halted"
+                    ),
+                    FaultAction::SawDrop,
+                ),
+            };
             self.faults
-                .record(FaultKind::Gripper, at_s, detail, actions, false);
+                .record(FaultKind::Gripper, at_s, detail, vec![action], false);
+        }
+        if let Some((at_s, force_n)) = self.faults.regripped.take() {
+            let detail = format!(
+                "the grip was {force_n:.1} N when the jaws closed; they opened and closed again"
+            );
+            let actions = vec![FaultAction::SawWeakGrip, FaultAction::Regripped];
+            self.faults
+                .record(FaultKind::Gripper, at_s, detail, actions, handled);
+        }
+        if let Some((at_s, force_n)) = self.faults.weak_in_place.take()
+            && !self
+                .faults
+                .records
+                .iter()
+                .any(|r| r.kind == FaultKind::Gripper)
+        {
+            let detail =
+                format!("the grip weakened to {force_n:.1} N over the bin; the place went on");
+            let actions = vec![FaultAction::SawWeakGrip];
+            self.faults
+                .record(FaultKind::Gripper, at_s, detail, actions, handled);
         }
         if self.gripper.fault_struck()
             && !self
@@ -388,70 +413,6 @@ impl CellData {
         let mut records = std::mem::take(&mut self.faults.records);
         records.sort_by(|a, b| a.at_s.total_cmp(&b.at_s));
         records
-    }
-}
-
-impl Sorter<'_> {
-    /// After a drop the jaws showed: the arm goes home with its jaws open, out of the
-    /// camera's view, and the part is looked for again. `Ok(true)` when it is seen at the
-    /// station (to be picked again).
-    pub(crate) fn look_again_after_drop(
-        &mut self,
-        model: &CellModel,
-        data: &mut CellData,
-    ) -> Result<bool, Failure> {
-        let scenario = model.scenario();
-        let home = scenario.robot.home_q_rad;
-        let q_now = data.cell.arm.joint_positions(&data.cell.world);
-        data.gripper.set(data.faults.open_m, 40.0);
-        let speed = scenario.robot.speed_fraction;
-        // Straight up first, clear of what stands on the belt, then over home.
-        let arm = &self.planner.model;
-        let base_from_tcp = tcp_pose(arm, &q_now);
-        let raised = Translation3::new(0.0, 0.0, DROP_RAISE_M) * base_from_tcp;
-        let mut parts = Vec::new();
-        let mut q_raised = q_now;
-        if let Some(up) = straight_line(&self.planner.ik, &base_from_tcp, &raised, &q_now, 0.01) {
-            q_raised = up[up.len() - 1];
-            parts.push(JointTrajectory::along(arm, up, speed));
-        }
-        parts.push(JointTrajectory::through(arm, &[q_raised, home], speed));
-        let back = JointTrajectory::join(parts, true);
-        if let Some(checker) = &data.faults.checker
-            && let Some(hit) =
-                checker.check_trajectory(&back, data.faults.open_m, None, &[PART_OBSTACLE])
-        {
-            return fail(
-                FailureReason::Collision,
-                format!(
-                    "after the drop the way home would bring {} onto {}",
-                    hit.link, hit.obstacle
-                ),
-            );
-        }
-        let span = (0.0, back.duration_s());
-        data.execute(model, Phase::Retreat, &back, span, DROP_SETTLE_S, None)?;
-        data.q = home;
-        Ok(self.part_seen_at_station(model, data))
-    }
-
-    /// Whether perception shows a part standing at the pick station now: the camera's look,
-    /// or in oracle mode the truth about the handled part.
-    fn part_seen_at_station(&mut self, model: &CellModel, data: &mut CellData) -> bool {
-        if self.camera.is_some() {
-            return self.perceive(model, data, None).is_ok();
-        }
-        let part = &data.cell.items.parts()[self.current];
-        let Some(pose) = data.cell.body_pose(part.body) else {
-            return false;
-        };
-        let belt = &model.scenario().conveyor;
-        let upright = (pose.rotation * nalgebra::Vector3::z()).z > 0.9;
-        let standing_z = data.cell.belt_top_z + part.instance.height_m / 2.0;
-        upright
-            && (pose.translation.z - standing_z).abs() < 0.01
-            && (pose.translation.x - belt.photo_eye_x_m).abs() < 0.3
-            && (pose.translation.y - belt.belt_center_m[1]).abs() < belt.width_m / 2.0
     }
 }
 

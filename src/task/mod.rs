@@ -6,6 +6,7 @@ mod at_eye;
 mod cell_data;
 mod fault_handling;
 mod feeder;
+mod grip_recovery;
 pub mod judge;
 mod let_through;
 mod motion_stages;

@@ -18,14 +18,14 @@ use crate::sim::JAW_SPEED_M_S;
 use crate::station::{Percept, Sighting};
 
 /// Time for the grip force to build once the drive reaches its end, s.
-const GRIP_BUILD_S: f64 = 0.1;
+pub(crate) const GRIP_BUILD_S: f64 = 0.1;
 /// Force with which the jaws open, N.
-pub(super) const OPEN_FORCE_N: f64 = 40.0;
+pub(crate) const OPEN_FORCE_N: f64 = 40.0;
 /// Rest after a motion that ends where the jaws act (at the grasp, in the bin), s: the stiff
 /// servos (1000 rad/s) close their last tracking error within a few steps.
 pub(super) const STOP_SETTLE_S: f64 = 0.02;
 /// Extra opening time once the pads have cleared the part, s.
-pub(super) const RELEASE_MARGIN_S: f64 = 0.02;
+pub(crate) const RELEASE_MARGIN_S: f64 = 0.02;
 
 /// What one pick cycle did to its part.
 pub(crate) struct Cycle {
@@ -187,6 +187,8 @@ impl Sorter<'_> {
                     {
                         // Kept for checking the motions again after a fault.
                         data.faults.checker = Some(self.planner.checker_for(percept));
+                        data.faults.carried = Some(self.planner.carried_for(percept));
+                        data.faults.pregrasp_q = Some(pick.pregrasp);
                     }
                     state.pick = Some(pick);
                     state.place = Some(place);
@@ -354,6 +356,7 @@ fn grasp(
     data.gripper.set(0.0, grip_force_n);
     let stroke_s = data.gripper.target_m() / JAW_SPEED_M_S;
     data.settle(model, stroke_s + GRIP_BUILD_S)?;
+    data.regrip_if_weak(model, grip_force_n)?;
     let gap = data.cell.arm.finger_positions_m(&data.cell.world);
     let closed_on_part = gap[0] + gap[1] > 2.0 * part_radius_m - 0.006;
     if !closed_on_part {

@@ -9,8 +9,7 @@ use super::pick_cycle::Cycle;
 use super::sorter::Sorter;
 use crate::cell::CellModel;
 use crate::outcome::{
-    Failure, FailureReason, FaultAction, FaultKind, Outcome, StreamPartRecord, StreamRecord,
-    TrialRecord,
+    Failure, FailureReason, FaultAction, Outcome, StreamPartRecord, StreamRecord, TrialRecord,
 };
 use crate::station::TrackEnd;
 
@@ -86,34 +85,7 @@ impl Sorter<'_> {
                 .push(FaultAction::IgnoredFalseTrigger);
             cycle = self.wait_and_pick(model, data);
         }
-        let Some((dropped_at_s, phase)) = data.faults.drop_seen.take() else {
-            return cycle;
-        };
-        let mut actions = vec![FaultAction::SawDrop];
-        let detail = format!("the grip weakened and the part fell during {phase}");
-        match self.look_again_after_drop(model, data) {
-            Ok(true) => {
-                actions.extend([FaultAction::FoundOnBelt, FaultAction::Repicked]);
-                cycle = self.pick_cycle(model, data, None);
-            }
-            Ok(false) => {
-                actions.push(FaultAction::CountedLost);
-                let rest = data.part_resting_place(model, self.current);
-                if let Some(failure) = cycle.failure.as_mut() {
-                    failure.detail.push_str(&format!(
-                        "; not seen at the pick station again: counted lost (truth: {rest})"
-                    ));
-                }
-            }
-            Err(failure) => {
-                actions.push(FaultAction::CountedLost);
-                cycle.failure = Some(failure);
-            }
-        }
-        let sorted = cycle.failure.is_none();
-        data.faults
-            .record(FaultKind::Gripper, dropped_at_s, detail, actions, sorted);
-        cycle
+        self.recover_grip(model, data, cycle)
     }
 
     /// A stream trial. The stream halts at its first fault, as a cell does.

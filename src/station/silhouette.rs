@@ -1,0 +1,114 @@
+//! A rigid body's outline as the calibrated camera sees it: its points projected to the box
+//! they span, and a body slid over a plane until its box is centred where a detection's is. The
+//! bottle fit and the lying-part fit share it.
+
+use nalgebra::{Isometry3, Point3};
+
+use crate::camera::CameraCalibration;
+
+/// Fixed-point iterations that move a hypothesis until its box centre meets the detection.
+const FIT_ITERATIONS: usize = 12;
+/// A hypothesis whose last move was shorter than this has converged, m.
+const CONVERGED_M: f64 = 1e-6;
+
+/// The points of a body's outline in its own frame, each once, as columns of x, y and z: the
+/// box is their projection's extent, taken in vector lanes.
+#[derive(Debug, Clone)]
+pub struct Silhouette {
+    xs: Vec<f64>,
+    ys: Vec<f64>,
+    zs: Vec<f64>,
+}
+
+impl Silhouette {
+    /// The outline of `points` (repeats dropped).
+    pub fn of_points(points: impl IntoIterator<Item = Point3<f64>>) -> Self {
+        let mut points: Vec<Point3<f64>> = points.into_iter().collect();
+        points.sort_by(|a, b| {
+            (a.x, a.y, a.z)
+                .partial_cmp(&(b.x, b.y, b.z))
+                .unwrap_or(std::cmp::Ordering::Equal)
+        });
+        points.dedup();
+        Self {
+            xs: points.iter().map(|p| p.x).collect(),
+            ys: points.iter().map(|p| p.y).collect(),
+            zs: points.iter().map(|p| p.z).collect(),
+        }
+    }
+
+    /// The box (`[x0, y0, x1, y1]`, pixels) the body at `world_from_body` projects to through
+    /// `camera`, or `None` when a point of it is not in front of the camera.
+    ///
+    /// A fit projects the outline a few thousand times per detection, so the body-to-camera
+    /// transform is composed once and applied as a matrix to every point.
+    pub fn projected_box(
+        &self,
+        camera: &CameraCalibration,
+        world_from_body: &Isometry3<f64>,
+    ) -> Option<[f64; 4]> {
+        let camera_from_body = camera.world_from_camera.inverse() * world_from_body;
+        let m = camera_from_body.rotation.to_rotation_matrix().into_inner();
+        let t = camera_from_body.translation.vector;
+        let (fx, fy, cx, cy) = (camera.fx_px, camera.fy_px, camera.cx_px, camera.cy_px);
+        let mut b = [
+            f64::INFINITY,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::NEG_INFINITY,
+        ];
+        let mut nearest_z = f64::INFINITY;
+        for ((&x, &y), &z) in self.xs.iter().zip(&self.ys).zip(&self.zs) {
+            let cz = m[(2, 0)] * x + m[(2, 1)] * y + m[(2, 2)] * z + t.z;
+            let cx_m = m[(0, 0)] * x + m[(0, 1)] * y + m[(0, 2)] * z + t.x;
+            let cy_m = m[(1, 0)] * x + m[(1, 1)] * y + m[(1, 2)] * z + t.y;
+            let u = fx * cx_m / cz + cx;
+            let v = fy * cy_m / cz + cy;
+            nearest_z = if cz < nearest_z { cz } else { nearest_z };
+            b[0] = if u < b[0] { u } else { b[0] };
+            b[1] = if v < b[1] { v } else { b[1] };
+            b[2] = if u > b[2] { u } else { b[2] };
+            b[3] = if v > b[3] { v } else { b[3] };
+        }
+        (nearest_z > 0.0).then_some(b)
+    }
+
+    /// Slides the body over the horizontal plane (`pose_at(x, y)` places it with its middle
+    /// over `(x, y)`; `mid_z` is the height of that middle) until its box is centred on
+    /// `centre_px`: the place reached and the box there, or `None` when the body leaves the
+    /// camera's view.
+    pub fn slide_to_centre(
+        &self,
+        camera: &CameraCalibration,
+        centre_px: [f64; 2],
+        mid_z: f64,
+        pose_at: impl Fn(f64, f64) -> Isometry3<f64>,
+    ) -> Option<([f64; 2], [f64; 4])> {
+        let on_mid_plane = |p: [f64; 2]| camera.pixel_to_height(p[0], p[1], mid_z);
+        let want = on_mid_plane(centre_px).ok()?;
+        let (mut x, mut y) = (want.x, want.y);
+        let mut fitted = None;
+        for _ in 0..FIT_ITERATIONS {
+            let Some(b) = self.projected_box(camera, &pose_at(x, y)) else {
+                break;
+            };
+            fitted = Some(b);
+            // Move by the centre offset, measured on the plane through the body's middle.
+            let Ok(at) = on_mid_plane([(b[0] + b[2]) / 2.0, (b[1] + b[3]) / 2.0]) else {
+                break;
+            };
+            let (dx, dy) = (want.x - at.x, want.y - at.y);
+            x += dx;
+            y += dy;
+            if dx.hypot(dy) < CONVERGED_M {
+                break;
+            }
+        }
+        fitted.map(|b| ([x, y], b))
+    }
+}
+
+/// The RMS difference of two boxes' four sides, pixels.
+pub fn box_residual_px(a: &[f64; 4], b: &[f64; 4]) -> f64 {
+    ((0..4).map(|k| (a[k] - b[k]).powi(2)).sum::<f64>() / 4.0).sqrt()
+}
