@@ -263,8 +263,11 @@ fn a_scenario_files_gate_applies_unless_min_success_replaces_it() {
         "fast_belt's own gate of 0.75 fails on 0/2"
     );
     assert_eq!(report(&dir)["gate"]["min_success"], 0.75);
-    // clutter's file sets no gate: whatever its trial does, the batch passes.
-    let clutter = concat!(env!("CARGO_MANIFEST_DIR"), "/scenarios/suite/clutter.toml");
+    // clutter_dense's file sets no gate: whatever its trial does, the batch passes.
+    let clutter = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/scenarios/suite/clutter_dense.toml"
+    );
     let ungated = [
         "run",
         clutter,
@@ -275,7 +278,7 @@ fn a_scenario_files_gate_applies_unless_min_success_replaces_it() {
         "--out",
         out,
     ];
-    assert_eq!(run_ok(&ungated), 0, "clutter's file sets no gate");
+    assert_eq!(run_ok(&ungated), 0, "clutter_dense's file sets no gate");
     assert!(report(&dir)["gate"].is_null());
 
     // suite and sweep take each scenario's own gate too.
