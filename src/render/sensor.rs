@@ -126,18 +126,7 @@ impl SensorDraw {
         let log_miss = (-p.min(1.0)).ln_1p();
         let pixels = image.as_mut().chunks_exact_mut(3);
         let count = pixels.len() as u64;
-        let skip = |rng: &mut SimRng| -> u64 {
-            if log_miss == f64::NEG_INFINITY {
-                return 0;
-            }
-            // Misses before the next hit: floor(ln U / ln(1 - p)), U uniform in (0, 1].
-            let gap = (1.0 - rng.uniform()).ln() / log_miss;
-            if gap >= count as f64 {
-                count
-            } else {
-                gap as u64
-            }
-        };
+        let skip = |rng: &mut SimRng| misses_before_hit(rng, log_miss, count);
         let mut index = skip(&mut rng);
         let mut pixels = pixels;
         let mut at = 0u64;
@@ -202,6 +191,21 @@ fn expose(pixels: &mut [u8], normal: &mut FastNormal, columns: &Columns, rows: &
 
 /// Salt of the salt-and-pepper stream, derived from the frame's noise seed.
 pub(super) const SALT_PEPPER_STREAM: u64 = 0x5a17;
+/// Misses before the next hit of a salt-and-pepper draw with `log_miss` = ln(1 - p) over `count`
+/// pixels: floor(ln U / ln(1 - p)), U uniform in (0, 1]; `count` once that runs past the end,
+/// 0 at p = 1.
+pub(super) fn misses_before_hit(rng: &mut SimRng, log_miss: f64, count: u64) -> u64 {
+    if log_miss == f64::NEG_INFINITY {
+        return 0;
+    }
+    let gap = (1.0 - rng.uniform()).ln() / log_miss;
+    if gap >= count as f64 {
+        count
+    } else {
+        gap as u64
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -50,17 +50,7 @@ impl SensorDraw {
         let log_miss = (-p.min(1.0)).ln_1p();
         let pixels = image.as_mut();
         let count = (pixels.len() / 3) as u64 * u64::from(area);
-        let skip = |rng: &mut SimRng| -> u64 {
-            if log_miss == f64::NEG_INFINITY {
-                return 0;
-            }
-            let gap = (1.0 - rng.uniform()).ln() / log_miss;
-            if gap >= count as f64 {
-                count
-            } else {
-                gap as u64
-            }
-        };
+        let skip = |rng: &mut SimRng| super::sensor::misses_before_hit(rng, log_miss, count);
         let area_f = f64::from(area);
         // The block being hit: its first byte, its values before any hit, and the sum of its
         // hits' targets less those values.

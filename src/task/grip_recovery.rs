@@ -7,7 +7,7 @@
 use nalgebra::{Isometry3, Point3, Translation3, Vector3};
 
 use super::cell_data::CellData;
-use super::pick_cycle::{Cycle, GRIP_BUILD_S, OPEN_FORCE_N, RELEASE_MARGIN_S};
+use super::pick_cycle::{Cycle, GRIP_BUILD_S, OPEN_FORCE_N};
 use super::sorter::Sorter;
 use crate::cell::CellModel;
 use crate::control::{GripReading, GripWatch, HoldMonitor};
@@ -65,12 +65,7 @@ impl CellData {
             return Ok(());
         };
         let at_s = self.cell.world.time_s();
-        let pads = self.cell.arm.finger_positions_m(&self.cell.world);
-        let open_m = self.faults.open_m;
-        self.gripper
-            .open_from(pads[0].min(pads[1]), open_m, OPEN_FORCE_N);
-        let travel_m = (open_m - self.gripper.target_m()).max(0.0);
-        self.settle(model, travel_m / JAW_SPEED_M_S + RELEASE_MARGIN_S)?;
+        self.release_jaws(model, self.faults.open_m)?;
         self.gripper.set(0.0, grip_force_n);
         let stroke_s = self.gripper.target_m() / JAW_SPEED_M_S;
         self.settle(model, stroke_s + GRIP_BUILD_S)?;
@@ -281,12 +276,7 @@ impl Sorter<'_> {
         let mut watch = GripWatch::new(2.0 * grip);
         let held = data.read_grip(&mut watch) != GripReading::Empty;
         data.phase = Phase::Release;
-        let pads = data.cell.arm.finger_positions_m(&data.cell.world);
-        let open_m = data.faults.open_m;
-        data.gripper
-            .open_from(pads[0].min(pads[1]), open_m, OPEN_FORCE_N);
-        let travel_m = (open_m - data.gripper.target_m()).max(0.0);
-        data.settle(model, travel_m / JAW_SPEED_M_S + RELEASE_MARGIN_S)?;
+        data.release_jaws(model, data.faults.open_m)?;
         Ok(held)
     }
 

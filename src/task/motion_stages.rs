@@ -4,10 +4,12 @@
 
 use super::cell_data::CellData;
 use super::phase::PhaseDeadline;
+use super::pick_cycle::{OPEN_FORCE_N, RELEASE_MARGIN_S};
 use crate::cell::CellModel;
 use crate::control::{HoldMonitor, TrajectoryFollower, TrajectoryStop};
 use crate::outcome::{Failure, Phase};
 use crate::planning::JointTrajectory;
+use crate::sim::JAW_SPEED_M_S;
 
 /// A part held by the jaws while a trajectory plays: which one, and the monitor of its grip.
 #[derive(Clone, Copy)]
@@ -75,6 +77,16 @@ impl CellData {
             self.step(model)?;
         }
         Ok(())
+    }
+
+    /// Opens the jaws to `open_m` from where the pads stand, and waits until the drive has
+    /// brought both pads clear of what they held.
+    pub(crate) fn release_jaws(&mut self, model: &CellModel, open_m: f64) -> Result<(), Failure> {
+        let pads = self.cell.arm.finger_positions_m(&self.cell.world);
+        self.gripper
+            .open_from(pads[0].min(pads[1]), open_m, OPEN_FORCE_N);
+        let travel_m = (open_m - self.gripper.target_m()).max(0.0);
+        self.settle(model, travel_m / JAW_SPEED_M_S + RELEASE_MARGIN_S)
     }
 
     /// Holds the arm where it is for `duration_s`.

@@ -233,13 +233,7 @@ impl Sorter<'_> {
                     let Some(percept) = &state.percept else {
                         return fail(FailureReason::Panic, "release without a percept");
                     };
-                    let open = self.planner.open_offset_m(percept);
-                    let pads = data.cell.arm.finger_positions_m(&data.cell.world);
-                    let pads_m = pads[0].min(pads[1]);
-                    data.gripper.open_from(pads_m, open, OPEN_FORCE_N);
-                    // Until the drive has brought both pads clear of the part's wall.
-                    let travel_m = (open - data.gripper.target_m()).max(0.0);
-                    data.settle(model, travel_m / JAW_SPEED_M_S + RELEASE_MARGIN_S)?;
+                    data.release_jaws(model, self.planner.open_offset_m(percept))?;
                 }
                 Phase::Retreat => {
                     let Some(place) = &state.place else {

@@ -282,11 +282,7 @@ impl Sorter<'_> {
         let span = (0.0, drop.lower.duration_s());
         data.execute(model, Phase::Place, &drop.lower, span, STOP_SETTLE_S, None)?;
         data.phase = Phase::Release;
-        let pads = data.cell.arm.finger_positions_m(&data.cell.world);
-        data.gripper
-            .open_from(pads[0].min(pads[1]), picked.open_m, OPEN_FORCE_N);
-        let travel_m = (picked.open_m - data.gripper.target_m()).max(0.0);
-        data.settle(model, travel_m / JAW_SPEED_M_S + RELEASE_MARGIN_S)?;
+        data.release_jaws(model, picked.open_m)?;
         let span = (0.0, drop.retreat.duration_s());
         data.execute(model, Phase::Retreat, &drop.retreat, span, 0.0, None)?;
         data.settle(model, DROP_REST_S)?;
