@@ -97,6 +97,9 @@ pub struct Bore {
     /// Median ratio of the rim's outer radius to the bore radius over the rays where the rim
     /// ends inside the image; NaN where it ends on none.
     pub outer_ratio: f64,
+    /// The rim's outer edge where it was found (image pixels), some of them on the tube's side
+    /// wall under a tilted camera ([`crate::perception::rim::RimScan::outer_points_px`]).
+    pub outer_edge_points_px: Vec<[f64; 2]>,
 }
 
 impl Bore {
@@ -110,6 +113,7 @@ impl Bore {
             .edge_points_px
             .iter_mut()
             .chain(self.bridge_points_px.iter_mut())
+            .chain(self.outer_edge_points_px.iter_mut())
         {
             *p = map(*p);
         }
@@ -464,6 +468,7 @@ impl BoreDetector {
             outer_ratio: rim
                 .outer_radius_px
                 .map_or(f64::NAN, |outer| outer / fit.radius),
+            outer_edge_points_px: rim.outer_points_px,
         })
     }
 

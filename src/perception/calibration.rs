@@ -129,6 +129,7 @@ mod tests {
             coverage: 1.0,
             contrast_ratio: 1.0,
             outer_ratio: 1.5,
+            outer_edge_points_px: Vec::new(),
         };
         let Ok(measured) = calibration.measure_on_plane(&bore, DEFAULT_MAX_UPR) else {
             panic!("measure failed");

@@ -7,6 +7,7 @@
 use crate::camera::CameraCalibration;
 use crate::perception::Bore;
 use crate::perception::circle_fit::fit_geometric;
+use crate::perception::roundness::median_of;
 
 /// A catalogue type's nominal sizes and the tolerance within which a reading names it, m.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -54,24 +55,66 @@ impl TypeCall {
     }
 }
 
-/// Reads `bore` (found in `calibration`'s image) on `calibration`'s end-face plane: the
-/// diameter of the circle fitted to its edge points back-projected there, and the outer
-/// diameter as the rim's measured outer-to-bore ratio times it (both circles lie on that plane,
-/// so the image ratio carries over). `None` when an edge point's ray misses the plane or the
-/// fit fails.
-pub fn read_on_plane(bore: &Bore, calibration: &CameraCalibration) -> Option<SizeReading> {
-    let points = bore
-        .edge_points_px
-        .iter()
-        .map(|p| calibration.pixel_to_plane(p[0], p[1]).map(|q| [q.x, q.y]))
-        .collect::<Result<Vec<_>, _>>()
-        .ok()?;
-    let diameter = 2.0 * fit_geometric(&points).ok()?.radius;
+/// Reads `bore` (found in `calibration`'s image) on `calibration`'s end-face plane, for a
+/// candidate type of outer radius `outer_radius_m`: the bore's diameter is that of the circle
+/// fitted to its edge points back-projected there; the outer diameter is read from the rim's
+/// outer edge points back-projected there too ([`outer_diameter_on_plane`]). `None` when a bore
+/// edge point's ray misses the plane or the fit fails.
+pub fn read_on_plane(
+    bore: &Bore,
+    calibration: &CameraCalibration,
+    outer_radius_m: f64,
+) -> Option<SizeReading> {
+    let on_plane = |points: &[[f64; 2]]| {
+        points
+            .iter()
+            .map(|p| calibration.pixel_to_plane(p[0], p[1]).map(|q| [q.x, q.y]))
+            .collect::<Result<Vec<_>, _>>()
+            .ok()
+    };
+    let fit = fit_geometric(&on_plane(&bore.edge_points_px)?).ok()?;
+    let eye = calibration.origin_in_world();
+    let outer_m = on_plane(&bore.outer_edge_points_px).and_then(|points| {
+        outer_diameter_on_plane(&points, fit.centre, [eye.x, eye.y], outer_radius_m)
+    });
     Some(SizeReading {
-        bore_m: diameter,
-        outer_m: (bore.outer_ratio.is_finite() && bore.outer_ratio > 1.0)
-            .then_some(bore.outer_ratio * diameter),
+        bore_m: 2.0 * fit.radius,
+        outer_m,
     })
+}
+
+/// Fewest outer edge points [`outer_diameter_on_plane`] reads a diameter from.
+pub const MIN_OUTER_POINTS: usize = 5;
+
+/// The outer diameter of an end face from its rim's outer edge `points` on the end-face plane,
+/// about the bore's centre `centre` there, seen by a camera whose centre lies above `eye` (world
+/// x, y), for a tube of outer radius `outer_radius_m`; m.
+///
+/// Beyond the end face's outer edge, where the camera looks down on the tube's side wall, the
+/// image shows the wall, not the belt: the rim's walk may run on down the wall, and the point it
+/// stops at, cast onto the end-face plane, lies outside the edge. The wall at a point of
+/// direction `n` from the axis is in view when the camera lies beyond the wall's tangent plane
+/// there, `(eye - centre) . n > outer_radius_m`. So only the points where it is hidden count, and
+/// the diameter is twice their median distance from the bore's centre (the bore and the outer
+/// surface are turned on one axis). Under a camera straight above the part every point counts;
+/// under one tilted 35° about half. `None` with fewer than [`MIN_OUTER_POINTS`].
+pub fn outer_diameter_on_plane(
+    points: &[[f64; 2]],
+    centre: [f64; 2],
+    eye: [f64; 2],
+    outer_radius_m: f64,
+) -> Option<f64> {
+    let to_eye = [eye[0] - centre[0], eye[1] - centre[1]];
+    let mut radii: Vec<f64> = points
+        .iter()
+        .filter_map(|p| {
+            let d = [p[0] - centre[0], p[1] - centre[1]];
+            let r = d[0].hypot(d[1]);
+            let towards_eye = (to_eye[0] * d[0] + to_eye[1] * d[1]) / r;
+            (r > 0.0 && towards_eye < outer_radius_m).then_some(r)
+        })
+        .collect();
+    (radii.len() >= MIN_OUTER_POINTS).then(|| 2.0 * median_of(&mut radii))
 }
 
 /// How far `reading` lies from `size`, in tolerances: the larger of the bore's and the outer
@@ -107,6 +150,7 @@ pub fn identify(sizes: &[TypeSize], readings: &[SizeReading]) -> TypeCall {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::f64::consts::TAU;
 
     fn size(bore_mm: f64, outer_mm: f64, tol_mm: f64) -> TypeSize {
         TypeSize {
@@ -168,6 +212,41 @@ mod tests {
             );
         }
         eprintln!("outer radius within {worst:.2} px");
+    }
+
+    /// Points on the arc where the side wall faces the camera lie outside the edge (the walk ran
+    /// on down the wall); only the others are read, wherever the camera stands.
+    #[test]
+    fn the_outer_diameter_is_read_where_the_side_wall_is_hidden() {
+        let mut rng = crate::rng::SimRng::new(2424);
+        for _ in 0..200 {
+            let outer_r = rng.range(0.008, 0.06);
+            let centre = [rng.range(-0.2, 0.2), rng.range(-0.6, -0.3)];
+            let (azimuth, reach) = (rng.range(0.0, TAU), rng.range(0.0, 0.9));
+            let eye = [
+                centre[0] + reach * azimuth.cos(),
+                centre[1] + reach * azimuth.sin(),
+            ];
+            let points: Vec<[f64; 2]> = (0..32)
+                .map(|i| {
+                    let a = TAU * (f64::from(i) + 0.5) / 32.0;
+                    let n = [a.cos(), a.sin()];
+                    let wall_seen =
+                        (eye[0] - centre[0]) * n[0] + (eye[1] - centre[1]) * n[1] > outer_r;
+                    let r = if wall_seen { outer_r + 0.004 } else { outer_r };
+                    [centre[0] + r * n[0], centre[1] + r * n[1]]
+                })
+                .collect();
+            let Some(d) = outer_diameter_on_plane(&points, centre, eye, outer_r) else {
+                panic!("reach {reach:.3} m, outer radius {outer_r:.3} m: no reading");
+            };
+            assert!(
+                (d - 2.0 * outer_r).abs() < 1e-9,
+                "read {d}, true {}",
+                2.0 * outer_r
+            );
+        }
+        assert!(outer_diameter_on_plane(&[[0.01, 0.0]; 4], [0.0, 0.0], [0.0, 0.0], 0.01).is_none());
     }
 
     #[test]

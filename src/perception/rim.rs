@@ -52,7 +52,7 @@ impl Default for RimParams {
 const WALK_CHUNK: usize = 8;
 
 /// What the walk found.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct RimScan {
     /// Median level down the bore, half way to its edge.
     pub bore_level: f64,
@@ -71,6 +71,12 @@ pub struct RimScan {
     /// Median distance from the centre to where the rim ends, over the same rays, with the
     /// end interpolated between the walk's samples: the outer edge's radius.
     pub outer_radius_px: Option<f64>,
+    /// The rim's outer edge on every ray where it ended inside the image: where the level falls
+    /// half way from the rim's, a few pixels inside, to the belt's (or whatever lies beyond), a
+    /// few pixels outside; image pixels. On a tilted camera part of these lie where the tube's
+    /// side wall shows beyond the end face, not on the face's edge: the reader of the outer
+    /// diameter keeps those it can trust ([`crate::perception::identify`]).
+    pub outer_points_px: Vec<[f64; 2]>,
 }
 
 /// Walks `params.rays` rays from `centre`, each from `radius_at(unit)` (the coarse bore edge in
@@ -122,6 +128,7 @@ pub fn scan_rim(
     let mut walked = 0usize;
     let mut walls = Vec::with_capacity(units.len());
     let mut outer_radii = Vec::with_capacity(units.len());
+    let mut outer_points = Vec::with_capacity(units.len());
     for &[c, s] in &units {
         let r = radius_at([c, s]);
         let limit = params.max_outer_ratio * r + 2.0;
@@ -158,6 +165,10 @@ pub fn scan_rim(
                         t
                     };
                     outer_radii.push(crossing);
+                    let inner = (crossing - OUTER_FLANK_PX).max(r + params.start_px);
+                    let t_edge = half_level_crossing(filtered, centre, [c, s], inner, crossing)
+                        .unwrap_or(crossing);
+                    outer_points.push([centre[0] + t_edge * c, centre[1] + t_edge * s]);
                     break 'walk;
                 }
                 previous = level;
@@ -192,7 +203,50 @@ pub fn scan_rim(
         flat_share: flat as f64 / walked as f64,
         wall_px: median(&mut walls),
         outer_radius_px: median(&mut outer_radii),
+        outer_points_px: outer_points,
     })
+}
+
+/// How far either side of the walk's end the outer edge's levels are read, px.
+const OUTER_FLANK_PX: f64 = 3.0;
+/// Step of the outer edge's search, px.
+const OUTER_STEP_PX: f64 = 0.25;
+
+/// Where the level along the ray from `centre` along `unit` first falls below half way between
+/// its values at `inner` (on the rim) and `OUTER_FLANK_PX` past `end` (beyond the rim), linearly
+/// interpolated between samples; `None` when the outside lies off the image or the two levels
+/// hardly differ.
+fn half_level_crossing(
+    image: &GrayImage,
+    centre: [f64; 2],
+    unit: [f64; 2],
+    inner: f64,
+    end: f64,
+) -> Option<f64> {
+    let (w, h) = (f64::from(image.width()), f64::from(image.height()));
+    let at = |t: f64| {
+        let (x, y) = (centre[0] + t * unit[0], centre[1] + t * unit[1]);
+        (x >= 0.0 && y >= 0.0 && x <= w - 1.0 && y <= h - 1.0).then(|| sample_bilinear(image, x, y))
+    };
+    let outer = end + OUTER_FLANK_PX;
+    let (rim, beyond) = (at(inner)?, at(outer)?);
+    if rim - beyond < 8.0 {
+        return None;
+    }
+    let half = 0.5 * (rim + beyond);
+    let mut previous = (inner, rim);
+    let mut t = inner + OUTER_STEP_PX;
+    while t <= outer {
+        let level = at(t)?;
+        if level < half {
+            let (t0, l0) = previous;
+            let share = ((l0 - half) / (l0 - level)).clamp(0.0, 1.0);
+            return Some(t0 + share * (t - t0));
+        }
+        previous = (t, level);
+        t += OUTER_STEP_PX;
+    }
+    None
 }
 
 /// Spread of the rim's `levels` on rays along `units` about a first harmonic `a + b cos + c

@@ -11,6 +11,7 @@ use image::imageops::grayscale;
 use serde::Serialize;
 
 use super::camera_percept::{find_in_window, measure_found, part_window};
+use crate::perception::identify::read_on_plane;
 use crate::perception::{BoreDetector, BoreDetectorParams};
 use crate::render::{CameraRig, RenderError, Renderer, Shot};
 use crate::scenario::Scenario;
@@ -99,8 +100,11 @@ impl MetrologyStudy {
         let Some((bore, plane)) = measured else {
             return Ok(ShotErrors::default());
         };
-        let outer = (bore.outer_ratio.is_finite() && bore.outer_ratio > 1.0)
-            .then_some(bore.outer_ratio * plane.diameter_m - part.outer_diameter_m);
+        // The outer edge read as the type reader reads it: on the end-face plane, through the
+        // area of interest's camera (the bore is in frame pixels now, so the frame's).
+        let outer = read_on_plane(&bore, &calibration, part.outer_diameter_m / 2.0)
+            .and_then(|reading| reading.outer_m)
+            .map(|outer| outer - part.outer_diameter_m);
         Ok(ShotErrors {
             roundness_m: Some(plane.roundness_m - part.roundness_m),
             bore_diameter_m: Some(plane.diameter_m - part.bore_diameter_m),

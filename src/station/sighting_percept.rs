@@ -5,6 +5,7 @@ use nalgebra::Point3;
 
 use super::camera_percept::Sighting;
 use super::percept::{Percept, bottle_obstacle, part_obstacle};
+use crate::camera::CameraCalibration;
 use crate::scenario::{BottleSection, Catalogue, PartTypeId};
 
 /// Things on the belt within this distance of the part are obstacles to its pick, m.
@@ -12,6 +13,12 @@ pub const NEIGHBOURHOOD_M: f64 = 0.45;
 /// How much a bottle seen by the camera is grown as an obstacle, for the uncertainty of a pose
 /// fitted to its box, m.
 const SEEN_BOTTLE_GROWTH_M: f64 = 0.004;
+
+/// A detector box whose side lies within this share of the frame's side of the frame's edge is
+/// cut by the image border (boxes are regressed, a cut one ends a few pixels short of the edge).
+const BORDER_TOUCH_SHARE: f64 = 0.01;
+/// A belt jog shorter than this would not move the part noticeably in the image, m.
+const MIN_JOG_M: f64 = 0.002;
 
 /// What the station knows of the cell to turn a sighting into a percept.
 #[derive(Debug, Clone, Copy)]
@@ -25,6 +32,62 @@ pub struct StationModel<'a> {
 }
 
 impl Sighting {
+    /// The belt travel (m, downstream along +x) after which the camera should look again,
+    /// when the target part is not seen whole: `None` when it is, or when nothing suggests that
+    /// moving the belt would help. The belt runs one way, so only parts upstream of the view's
+    /// centre can be brought to it.
+    ///
+    /// - The target's box touches the image border and its bore was not measured: the travel
+    ///   that brings the part's place (its box centre on its end-face plane, `centre_in_world`)
+    ///   to where the optical axis meets that plane. A cut box's centre lies short of the
+    ///   part's, towards the view's centre, so the jog falls short rather than overshooting:
+    ///   the caller looks again, and jogs again if the part is still cut.
+    /// - No part was seen but a bottle was (the bottle stopped the belt, and the part behind it
+    ///   is still upstream of the view): the travel from the view's upstream edge on the belt to
+    ///   its centre, which brings what lay just upstream of the view to its middle.
+    ///
+    /// `calibration` is the frame's camera, `frame_px` its size (the boxes' pixels), and the
+    /// belt's top is at `belt_top_z_m`.
+    pub fn border_jog_m(
+        &self,
+        calibration: &CameraCalibration,
+        frame_px: (u32, u32),
+        belt_top_z_m: f64,
+    ) -> Option<f64> {
+        let (w, h) = (f64::from(frame_px.0), f64::from(frame_px.1));
+        let (cx, cy) = (calibration.cx_px, calibration.cy_px);
+        let jog = match &self.target {
+            Some(target) => {
+                if target.bore.is_some() {
+                    return None;
+                }
+                let [x0, y0, x1, y1] = self.detections.get(target.detection)?.box_px.map(f64::from);
+                let (mx, my) = (BORDER_TOUCH_SHARE * w, BORDER_TOUCH_SHARE * h);
+                if x0 > mx && y0 > my && x1 < w - mx && y1 < h - my {
+                    return None;
+                }
+                let face = calibration.with_end_face_height(target.centre_in_world.z);
+                face.pixel_to_plane(cx, cy).ok()?.x - target.centre_in_world.x
+            }
+            None if !self.bottles.is_empty() => {
+                let belt = calibration.with_end_face_height(belt_top_z_m);
+                let upstream_edge = [
+                    [0.0, 0.0],
+                    [w - 1.0, 0.0],
+                    [0.0, h - 1.0],
+                    [w - 1.0, h - 1.0],
+                ]
+                .iter()
+                .filter_map(|p| belt.pixel_to_plane(p[0], p[1]).ok())
+                .map(|p| p.x)
+                .fold(f64::INFINITY, f64::min);
+                belt.pixel_to_plane(cx, cy).ok()?.x - upstream_edge
+            }
+            None => return None,
+        };
+        (jog.is_finite() && jog >= MIN_JOG_M).then_some(jog)
+    }
+
     /// What this sighting means for the pick, or `None` when it holds no target part.
     pub fn percept(&self, station: &StationModel<'_>) -> Option<Percept> {
         let target = self.target.as_ref()?;

@@ -77,7 +77,11 @@ impl TypeReader {
         let readings: Option<Vec<_>> = self
             .heights_m
             .iter()
-            .map(|h| read_on_plane(bore, &calibration.with_end_face_height(belt_top_z_m + h)))
+            .zip(&self.sizes)
+            .map(|(h, size)| {
+                let face = calibration.with_end_face_height(belt_top_z_m + h);
+                read_on_plane(bore, &face, size.outer_m / 2.0)
+            })
             .collect();
         let Some(readings) = readings else {
             return TypeDecision {

@@ -7,6 +7,7 @@ use super::cell_data::CellData;
 use super::observer::{BoreView, DetectionView, PerceptionFrame};
 use super::sorter::Sorter;
 use crate::cell::CellModel;
+use crate::control::BELT_ACCEL_M_S2;
 use crate::outcome::{Failure, FailureReason, PartRecord, fail};
 use crate::render::Scene;
 use crate::rng::SimRng;
@@ -15,6 +16,15 @@ use crate::station::{
     CameraPerception, NEIGHBOURHOOD_M, Percept, Sighting, StationItem, StationModel, TargetRule,
     bottle_obstacle, part_obstacle,
 };
+
+/// Most belt jogs that bring a part cut by the image border into view before the cell works
+/// with what it sees.
+const MAX_BORDER_JOGS: usize = 3;
+/// Longest a belt jog may take per metre of travel at the belt's speed, beyond a second's
+/// margin, before it counts as stalled, s.
+const JOG_TIME_FACTOR: f64 = 3.0;
+/// Settling time after a jog, as after the belt stops at the photo-eye, s.
+const JOG_SETTLE_S: f64 = 0.25;
 
 /// Salt that keeps the camera's realism stream apart from the trial's physics stream.
 const CAMERA_SALT: u64 = 0x4C4F_4F4B;
@@ -31,7 +41,21 @@ impl Sorter<'_> {
         match (self.camera, seen) {
             (_, Some(sighting)) => percept_from(model, data, &sighting),
             (Some(camera), None) => {
-                let sighting = self.look(model, data, camera, TargetRule::NearestStation)?;
+                let mut sighting = self.look(model, data, camera, TargetRule::NearestStation)?;
+                // A part cut by the image border, or still upstream of the view behind the
+                // bottle that stopped the belt, is carried towards the view's centre and looked
+                // at again, a few times at most.
+                let rig = camera.rig();
+                for _ in 0..MAX_BORDER_JOGS {
+                    let frame_px = (rig.width_px, rig.height_px);
+                    let belt_top_z = data.cell.belt_top_z;
+                    let jog = sighting.border_jog_m(&rig.calibration, frame_px, belt_top_z);
+                    let Some(jog_m) = jog else {
+                        break;
+                    };
+                    data.jog_belt(model, jog_m)?;
+                    sighting = self.look(model, data, camera, TargetRule::NearestStation)?;
+                }
                 percept_from(model, data, &sighting)
             }
             (None, None) => {
@@ -83,6 +107,43 @@ impl Sorter<'_> {
         let catalogue = model.catalogue();
         data.observe_perception(|| perception_frame(&sighting, &truth, catalogue));
         Ok(sighting)
+    }
+}
+
+impl CellData {
+    /// Runs the belt downstream by `distance_m` of encoder travel at the scenario's speed and
+    /// stops it (the drive's ramp taken into account), lets things settle, and notes where the
+    /// bottles now rest: the belt, not the robot, moved them.
+    pub(crate) fn jog_belt(&mut self, model: &CellModel, distance_m: f64) -> Result<(), Failure> {
+        let speed = model.scenario().conveyor.speed_m_s;
+        let start_m = self.belt.encoder_travel_m();
+        let deadline_s = self.cell.world.time_s() + 1.0 + JOG_TIME_FACTOR * distance_m / speed;
+        self.belt.run_at(speed);
+        loop {
+            let v = f64::from(self.cell.conveyor.speed_m_s());
+            let stopping_m = v * v / (2.0 * BELT_ACCEL_M_S2);
+            if self.belt.encoder_travel_m() - start_m + stopping_m >= distance_m {
+                break;
+            }
+            if self.cell.world.time_s() > deadline_s {
+                self.belt.run_at(0.0);
+                return Err(Failure::new(
+                    FailureReason::Timeout,
+                    format!(
+                        "the belt jog of {:.0} mm that brings the part into view stalled",
+                        distance_m * 1e3
+                    ),
+                ));
+            }
+            self.step(model)?;
+        }
+        self.belt.run_at(0.0);
+        while self.cell.conveyor.speed_m_s() > 0.0 {
+            self.step(model)?;
+        }
+        self.settle(model, JOG_SETTLE_S)?;
+        self.note_bottle_rest(model);
+        Ok(())
     }
 }
 
