@@ -17,6 +17,9 @@ const SEEN_BOTTLE_GROWTH_M: f64 = 0.004;
 /// A detector box whose side lies within this share of the frame's side of the frame's edge is
 /// cut by the image border (boxes are regressed, a cut one ends a few pixels short of the edge).
 const BORDER_TOUCH_SHARE: f64 = 0.01;
+/// A jog helps a cut part when the belt's motion carries its image inward from every border it
+/// touches by at least this share of the motion (within 60° of the border's inward normal).
+const INWARD_SHARE: f64 = 0.5;
 /// A belt jog shorter than this would not move the part noticeably in the image, m.
 const MIN_JOG_M: f64 = 0.002;
 
@@ -37,7 +40,8 @@ impl Sighting {
     /// moving the belt would help. The belt runs one way, so only parts upstream of the view's
     /// centre can be brought to it.
     ///
-    /// - The target's box touches the image border and its bore was not measured: the travel
+    /// - The target's box touches the image border, its bore was not measured, and the belt's
+    ///   motion carries the part's image inward from every border it touches: the travel
     ///   that brings the part's place (its box centre on its end-face plane, `centre_in_world`)
     ///   to where the optical axis meets that plane. A cut box's centre lies short of the
     ///   part's, towards the view's centre, so the jog falls short rather than overshooting:
@@ -63,11 +67,37 @@ impl Sighting {
                 }
                 let [x0, y0, x1, y1] = self.detections.get(target.detection)?.box_px.map(f64::from);
                 let (mx, my) = (BORDER_TOUCH_SHARE * w, BORDER_TOUCH_SHARE * h);
-                if x0 > mx && y0 > my && x1 < w - mx && y1 < h - my {
+                // The image borders the box touches, as inward unit normals.
+                let touched: Vec<[f64; 2]> = [
+                    (x0 <= mx, [1.0, 0.0]),
+                    (y0 <= my, [0.0, 1.0]),
+                    (x1 >= w - mx, [-1.0, 0.0]),
+                    (y1 >= h - my, [0.0, -1.0]),
+                ]
+                .iter()
+                .filter(|(t, _)| *t)
+                .map(|(_, n)| *n)
+                .collect();
+                if touched.is_empty() {
                     return None;
                 }
-                let face = calibration.with_end_face_height(target.centre_in_world.z);
-                face.pixel_to_plane(cx, cy).ok()?.x - target.centre_in_world.x
+                // The belt carries the part downstream (+x): that helps only if the part's
+                // image moves away from every border it touches (a part cut at a border along
+                // the belt's image stays cut however far it is carried).
+                let p = target.centre_in_world;
+                let from = calibration.project(&p)?;
+                let to = calibration.project(&(p + nalgebra::Vector3::new(MIN_JOG_M, 0.0, 0.0)))?;
+                let (dx, dy) = (to[0] - from[0], to[1] - from[1]);
+                let motion = dx.hypot(dy);
+                if motion <= 0.0
+                    || touched
+                        .iter()
+                        .any(|n| n[0] * dx + n[1] * dy < INWARD_SHARE * motion)
+                {
+                    return None;
+                }
+                let face = calibration.with_end_face_height(p.z);
+                face.pixel_to_plane(cx, cy).ok()?.x - p.x
             }
             None if !self.bottles.is_empty() => {
                 let belt = calibration.with_end_face_height(belt_top_z_m);
