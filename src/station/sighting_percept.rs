@@ -17,8 +17,9 @@ const SEEN_BOTTLE_GROWTH_M: f64 = 0.004;
 /// A detector box whose side lies within this share of the frame's side of the frame's edge is
 /// cut by the image border (boxes are regressed, a cut one ends a few pixels short of the edge).
 const BORDER_TOUCH_SHARE: f64 = 0.01;
-/// A jog helps a cut part when the belt's motion carries its image inward from every border it
-/// touches by at least this share of the motion (within 60° of the border's inward normal).
+/// A jog helps a cut part when the belt's motion carries its image inward from a border it
+/// touches by at least this share of the motion (within 60° of the border's inward normal), and
+/// outward from none by as much.
 const INWARD_SHARE: f64 = 0.5;
 /// A belt jog shorter than this would not move the part noticeably in the image, m.
 const MIN_JOG_M: f64 = 0.002;
@@ -41,7 +42,8 @@ impl Sighting {
     /// centre can be brought to it.
     ///
     /// - The target's box touches the image border, its bore was not measured, and the belt's
-    ///   motion carries the part's image inward from every border it touches: the travel
+    ///   motion carries the part's image inward from a border it touches and out of none: the
+    ///   travel
     ///   that brings the part's place (its box centre on its end-face plane, `centre_in_world`)
     ///   to where the optical axis meets that plane. A cut box's centre lies short of the
     ///   part's, towards the view's centre, so the jog falls short rather than overshooting:
@@ -82,18 +84,17 @@ impl Sighting {
                     return None;
                 }
                 // The belt carries the part downstream (+x): that helps only if the part's
-                // image moves away from every border it touches (a part cut at a border along
-                // the belt's image stays cut however far it is carried).
+                // image moves away from a border it touches and towards none (a part cut at a
+                // border along the belt's image stays cut however far it is carried).
                 let p = target.centre_in_world;
                 let from = calibration.project(&p)?;
                 let to = calibration.project(&(p + nalgebra::Vector3::new(MIN_JOG_M, 0.0, 0.0)))?;
                 let (dx, dy) = (to[0] - from[0], to[1] - from[1]);
                 let motion = dx.hypot(dy);
-                if motion <= 0.0
-                    || touched
-                        .iter()
-                        .any(|n| n[0] * dx + n[1] * dy < INWARD_SHARE * motion)
-                {
+                let inward = |n: &[f64; 2]| (n[0] * dx + n[1] * dy) / motion;
+                let helps = touched.iter().any(|n| inward(n) >= INWARD_SHARE);
+                let worsens = touched.iter().any(|n| inward(n) < -INWARD_SHARE);
+                if motion <= 0.0 || !helps || worsens {
                     return None;
                 }
                 let face = calibration.with_end_face_height(p.z);
