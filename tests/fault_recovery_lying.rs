@@ -86,13 +86,19 @@ fn a_tube_that_falls_lying_is_picked_again_and_laid_in_its_bin_in_both_modes() {
         let records = records(&dir);
         assert_eq!(records.len(), 16);
         let (lying, laid) = lying_outcomes(&records);
-        assert!(laid >= 1, "{perception}: {laid} of {lying} lying tubes laid in a bin");
+        assert!(
+            laid >= 1,
+            "{perception}: {laid} of {lying} lying tubes laid in a bin"
+        );
         for record in &records {
             if record["outcome"] != "success" {
                 continue;
             }
             // A success is the part in the bin its truth calls for, lying or standing.
-            assert_eq!(record["placed_bin"], record["part"]["correct_bin"], "{record}");
+            assert_eq!(
+                record["placed_bin"], record["part"]["correct_bin"],
+                "{record}"
+            );
         }
     }
 }

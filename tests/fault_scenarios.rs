@@ -57,8 +57,11 @@ fn the_fault_suite_has_one_scenario_per_kind_each_extending_a_base() {
     for entry in std::fs::read_dir(&folder).expect("scenarios/faults") {
         let path = entry.expect("entry").path();
         files += 1;
-        let stem = path.file_stem().and_then(|s| s.to_str()).unwrap_or_default();
-        if kinds.iter().any(|k| *k == stem) {
+        let stem = path
+            .file_stem()
+            .and_then(|s| s.to_str())
+            .unwrap_or_default();
+        if kinds.contains(&stem) {
             continue;
         }
         let scenario = Scenario::load(&path).unwrap_or_else(|e| panic!("{e}"));

@@ -1,6 +1,8 @@
 //! The place of a picked cylinder into a bin, laid down rather than dropped: a steel tube
-//! picked lying (fallen over) is lowered lying into its bin's next free slot until its lowest
+//! picked lying (fallen over) is lowered lying into a slot at its bin's edge until its lowest
 //! point is just above the floor, and let go there.
+
+use nalgebra::Vector3;
 
 use super::pick_planner::PlaceSpot;
 use super::{CylinderPick, PickPlanner, PlacePlan, bin_slot};
@@ -15,15 +17,20 @@ const LAY_ABOVE_FLOOR_M: f64 = 0.012;
 /// descent, m.
 const LAY_APPROACH_ABOVE_RIM_M: f64 = 0.04;
 
+/// Slots of a bin the lying place tries, farthest from the floor's centre first.
+const LAY_SLOTS_TRIED: usize = 3;
+/// Placed counts probed for a bin's slots (more than any bin here holds).
+const SLOTS_PROBED: usize = 64;
+
 impl PickPlanner {
-    /// The place of `picked` into `bin` after `placed_before` parts: carried over the next
-    /// free slot (or, when no place there is clear, the floor's centre), lowered until its
-    /// lowest point is just above the floor, and let go.
+    /// The place of `picked` into `bin`: carried over one of the bin's slots farthest from its
+    /// centre (standing parts fill the slots nearest it first, and a lying tube reaches over
+    /// into the next ones), or, when no place there is clear, the floor's centre; lowered until
+    /// its lowest point is just above the floor, and let go.
     pub fn plan_cylinder_place(
         &self,
         picked: &CylinderPick,
         bin: &BinBody,
-        placed_before: usize,
     ) -> Result<PlacePlan, Failure> {
         // The tool points down at the place: the carried body's lowest point is its largest
         // TCP z.
@@ -32,8 +39,8 @@ impl PickPlanner {
             .shape
             .compute_aabb(&pose_to_physics(&carried.tcp_from_shape));
         let below_tcp_m = f64::from(aabb.maxs.z);
-        let place_at = |slot: usize| {
-            let floor = bin.floor_center + bin_slot(bin, slot);
+        let place_at = |offset: Vector3<f64>| {
+            let floor = bin.floor_center + offset;
             let spot = PlaceSpot {
                 xy: [floor.x, floor.y],
                 above_z: floor.z + bin.wall_height + LAY_APPROACH_ABOVE_RIM_M + below_tcp_m,
@@ -49,9 +56,26 @@ impl PickPlanner {
                 &picked.checker,
             )
         };
-        match place_at(placed_before) {
-            Err(_) if placed_before > 0 => place_at(0),
-            placed => placed,
+        let mut slots: Vec<Vector3<f64>> = Vec::new();
+        for placed in 0..SLOTS_PROBED {
+            let slot = bin_slot(bin, placed);
+            if !slots.iter().any(|s| (s - slot).norm() < 1e-9) {
+                slots.push(slot);
+            }
+        }
+        // Farthest first; among equals, the order the bin fills them in.
+        slots.sort_by(|a, b| b.norm().total_cmp(&a.norm()));
+        let mut last = None;
+        for slot in slots.into_iter().take(LAY_SLOTS_TRIED) {
+            match place_at(slot) {
+                Ok(plan) => return Ok(plan),
+                Err(failure) => last = Some(failure),
+            }
+        }
+        match (place_at(Vector3::zeros()), last) {
+            (Ok(plan), _) => Ok(plan),
+            (Err(_), Some(failure)) => Err(failure),
+            (Err(failure), None) => Err(failure),
         }
     }
 }

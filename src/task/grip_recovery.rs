@@ -448,9 +448,13 @@ impl Sorter<'_> {
                 .iter()
                 .flat_map(|c| c.obstacles())
                 .filter(|o| o.name == "bottle")
-                .map(|o| Point3::from(
-                    (self.planner.world_from_base * o.base_from_shape).translation.vector,
-                ))
+                .map(|o| {
+                    Point3::from(
+                        (self.planner.world_from_base * o.base_from_shape)
+                            .translation
+                            .vector,
+                    )
+                })
                 .collect();
             let was_bottle = |x: f64, y: f64| {
                 bottles_before
@@ -480,8 +484,7 @@ impl Sorter<'_> {
                 (None, Some(_)) => true,
                 (Some(part), Some(c)) => {
                     !on_footprint(part, c.x, c.y)
-                        && (c - station).xy().norm()
-                            < (part.centre_in_world - station).xy().norm()
+                        && (c - station).xy().norm() < (part.centre_in_world - station).xy().norm()
                 }
             };
             if standing {

@@ -145,7 +145,7 @@ impl Sorter<'_> {
         Ok(())
     }
 
-    /// The lying part's pick, and its place into `bin`'s next free slot.
+    /// The lying part's pick, and its place into `bin`, at its edge.
     fn plan_lying(
         &self,
         model: &CellModel,
@@ -185,9 +185,7 @@ impl Sorter<'_> {
             .planner
             .plan_cylinder_pick(&cylinder, obstacles, &data.q, friction)?;
         let bin_body = &data.cell.bins[bin.0];
-        let place = self
-            .planner
-            .plan_cylinder_place(&picked, bin_body, data.bin_fill[bin.0])?;
+        let place = self.planner.plan_cylinder_place(&picked, bin_body)?;
         Ok((picked, place))
     }
 }
