@@ -1,6 +1,6 @@
 //! The place of a picked cylinder into a bin, laid down rather than dropped: a steel tube
-//! picked lying (fallen over) is lowered lying into a slot at its bin's edge until its lowest
-//! point is just above the floor, and let go there.
+//! picked lying (fallen over) is lowered lying into its bin's free slot nearest the edge until
+//! its lowest point is just above the floor, and let go there.
 
 use nalgebra::Vector3;
 
@@ -17,20 +17,19 @@ const LAY_ABOVE_FLOOR_M: f64 = 0.012;
 /// descent, m.
 const LAY_APPROACH_ABOVE_RIM_M: f64 = 0.04;
 
-/// Slots of a bin the lying place tries, farthest from the floor's centre first.
-const LAY_SLOTS_TRIED: usize = 3;
 /// Placed counts probed for a bin's slots (more than any bin here holds).
 const SLOTS_PROBED: usize = 64;
 
 impl PickPlanner {
-    /// The place of `picked` into `bin`: carried over one of the bin's slots farthest from its
-    /// centre (standing parts fill the slots nearest it first, and a lying tube reaches over
-    /// into the next ones), or, when no place there is clear, the floor's centre; lowered until
+    /// The place of `picked` into `bin` after `placed_before` parts: carried over the free
+    /// slot farthest from the bin's centre that it fits (standing parts fill the slots nearest
+    /// the centre first, and a lying tube reaches into the slots beside its own), lowered until
     /// its lowest point is just above the floor, and let go.
     pub fn plan_cylinder_place(
         &self,
         picked: &CylinderPick,
         bin: &BinBody,
+        placed_before: usize,
     ) -> Result<PlacePlan, Failure> {
         // The tool points down at the place: the carried body's lowest point is its largest
         // TCP z.
@@ -56,6 +55,7 @@ impl PickPlanner {
                 &picked.checker,
             )
         };
+        // The bin's slots in the order it fills them; the first `placed_before` are taken.
         let mut slots: Vec<Vector3<f64>> = Vec::new();
         for placed in 0..SLOTS_PROBED {
             let slot = bin_slot(bin, placed);
@@ -63,19 +63,20 @@ impl PickPlanner {
                 slots.push(slot);
             }
         }
+        let taken = placed_before.min(slots.len().saturating_sub(1));
+        let mut free = slots.split_off(taken);
         // Farthest first; among equals, the order the bin fills them in.
-        slots.sort_by(|a, b| b.norm().total_cmp(&a.norm()));
+        free.sort_by(|a, b| b.norm().total_cmp(&a.norm()));
         let mut last = None;
-        for slot in slots.into_iter().take(LAY_SLOTS_TRIED) {
+        for slot in free {
             match place_at(slot) {
                 Ok(plan) => return Ok(plan),
                 Err(failure) => last = Some(failure),
             }
         }
-        match (place_at(Vector3::zeros()), last) {
-            (Ok(plan), _) => Ok(plan),
-            (Err(_), Some(failure)) => Err(failure),
-            (Err(failure), None) => Err(failure),
+        match last {
+            Some(failure) => Err(failure),
+            None => place_at(Vector3::zeros()),
         }
     }
 }

@@ -185,7 +185,9 @@ impl Sorter<'_> {
             .planner
             .plan_cylinder_pick(&cylinder, obstacles, &data.q, friction)?;
         let bin_body = &data.cell.bins[bin.0];
-        let place = self.planner.plan_cylinder_place(&picked, bin_body)?;
+        let place = self
+            .planner
+            .plan_cylinder_place(&picked, bin_body, data.bin_fill[bin.0])?;
         Ok((picked, place))
     }
 }
