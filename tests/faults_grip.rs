@@ -1,6 +1,6 @@
 //! The grip watch on real trials (oracle mode, the gripper fault forced on in every trial): the
 //! controller feels every weakened grip from the jaws' force before the part is gone, takes it
-//! again or sets the part down and picks it again, and records a part it sees lying.
+//! again or sets the part down and picks it again, and picks a part it sees lying by its body.
 
 mod common;
 
@@ -53,12 +53,15 @@ fn every_weakened_grip_is_felt_and_most_parts_are_set_down_and_sorted() {
         if actions.contains(&"saw_lying_part") {
             let lying = &fault["saw_lying_part"];
             assert_eq!(lying["part_type"], record["part"]["part_type"], "{fault}");
-            assert!(actions.contains(&"counted_lost"), "{fault}");
+            // Picked again lying: laid in its bin, or counted lost with its reason.
+            let laid = fault["recovered"] == true && actions.contains(&"repicked_lying");
+            assert!(laid || actions.contains(&"counted_lost"), "{fault}");
         } else {
             assert!(fault.get("saw_lying_part").is_none(), "{fault}");
         }
         sorted += usize::from(record["outcome"] == "success");
     }
-    // Measured 13 of 16 (the 3 others fell lying while they were brought back).
-    assert!(sorted >= 11, "{sorted} of 16 sorted");
+    // Measured 14 of 16: 3 fell lying while they were brought back; one was picked lying and
+    // laid in its bin, two lay against the belt's rail where no finger fits beside them.
+    assert!(sorted >= 12, "{sorted} of 16 sorted");
 }

@@ -61,6 +61,9 @@ pub enum FaultAction {
     SetDown,
     /// Saw the part lying on the belt (the pose is in the record's `saw_lying_part`).
     SawLyingPart,
+    /// Picked the lying part by its body, square to its axis, and carried it to the bin decided
+    /// while it stood (whether it got there is the record's `recovered`).
+    RepickedLying,
     /// Found the dropped part neither in the jaws nor on the belt, and counted it lost.
     CountedLost,
     /// Asked the camera again after a wait, each wait longer than the last.
@@ -102,8 +105,8 @@ pub struct FaultRecord {
     /// Parts it cost: dropped off the belt and outside every bin, or run off the belt unseen.
     #[serde(default)]
     pub lost_parts: u32,
-    /// A part seen lying on the belt after the fault, as perception fitted it (a lying part
-    /// is not picked: the planner grasps standing tubes).
+    /// A part seen lying on the belt after the fault, as perception fitted it (it is picked
+    /// lying when the record's actions say `repicked_lying`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub saw_lying_part: Option<LyingPartRecord>,
 }

@@ -3,6 +3,7 @@
 
 mod collision;
 mod cylinder_grasp;
+mod cylinder_place;
 #[cfg(test)]
 mod cylinder_grasp_tests;
 mod grasp_search;

@@ -106,7 +106,22 @@ impl LyingPartFinder {
         around_in_world: &Point3<f64>,
         search_radius_m: f64,
     ) -> Option<LyingPart> {
-        let roi = self.search_window(image, around_in_world, search_radius_m)?;
+        self.find_all(image, around_in_world, search_radius_m)
+            .into_iter()
+            .next()
+    }
+
+    /// Every lying tube within `search_radius_m` of `around_in_world` on the belt, nearest
+    /// first.
+    pub fn find_all(
+        &self,
+        image: &RgbImage,
+        around_in_world: &Point3<f64>,
+        search_radius_m: f64,
+    ) -> Vec<LyingPart> {
+        let Some(roi) = self.search_window(image, around_in_world, search_radius_m) else {
+            return Vec::new();
+        };
         let mut mask = steel_mask(image, roi);
         let [[x_min, x_max], [y_min, y_max]] = self.belt_xy_m;
         let width = roi.2 - roi.0;
@@ -119,7 +134,7 @@ impl LyingPartFinder {
             *steel &= on_belt;
         }
         let bodies = components(&mask, roi.2 - roi.0, roi.3 - roi.1);
-        bodies
+        let mut found: Vec<LyingPart> = bodies
             .into_iter()
             .filter(|body| body.len() >= MIN_BODY_PX)
             .filter_map(|body| {
@@ -140,11 +155,10 @@ impl LyingPartFinder {
                 let d = part.centre_in_world - around_in_world;
                 d.x.hypot(d.y) <= search_radius_m
             })
-            .min_by(|a, b| {
-                let da = (a.centre_in_world - around_in_world).xy().norm();
-                let db = (b.centre_in_world - around_in_world).xy().norm();
-                da.total_cmp(&db)
-            })
+            .collect();
+        let distance = |p: &LyingPart| (p.centre_in_world - around_in_world).xy().norm();
+        found.sort_by(|a, b| distance(a).total_cmp(&distance(b)));
+        found
     }
 
     /// The image window (`x0, y0, x1, y1`, end exclusive) that the belt's disc of

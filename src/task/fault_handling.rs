@@ -120,6 +120,15 @@ impl FaultLog {
     }
 }
 
+impl FaultLog {
+    /// Whether the last fault recorded ended with its part counted lost.
+    pub(crate) fn counted_lost_last(&self) -> bool {
+        self.records
+            .last()
+            .is_some_and(|r| r.actions.contains(&FaultAction::CountedLost))
+    }
+}
+
 impl CellData {
     /// What the photo-eye reports now.
     pub(crate) fn photo_eye_reports(&self) -> bool {
@@ -322,18 +331,18 @@ impl CellData {
     /// its end; `handled` says whether the trial's item reached its end state.
     pub(crate) fn take_fault_records(&mut self, handled: bool) -> Vec<FaultRecord> {
         let now = self.cell.world.time_s();
-        // A drop the single-part recovery did not take up (a stream halts at it).
+        // A drop no recovery took up.
         if let Some((at_s, phase)) = self.faults.drop_seen.take() {
             let (detail, action) = match self.faults.weak_grip_n.take() {
                 Some(force_n) => (
                     format!(
-                        "the grip weakened to {force_n:.1} N during {phase}; the stream halted"
+                        "the grip weakened to {force_n:.1} N during {phase}; no recovery followed"
                     ),
                     FaultAction::SawWeakGrip,
                 ),
                 None => (
                     format!(
-                        "the grip weakened and the part fell during {phase}; the stream halted"
+                        "the grip weakened and the part fell during {phase}; no recovery followed"
                     ),
                     FaultAction::SawDrop,
                 ),

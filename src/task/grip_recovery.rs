@@ -7,6 +7,9 @@
 use nalgebra::{Isometry3, Point3, Translation3, Vector3};
 
 use super::cell_data::CellData;
+use super::let_through::is_refusal;
+use super::lying_repick::{on_footprint, seen_around};
+use super::perceive::perceive_oracle;
 use super::pick_cycle::{Cycle, GRIP_BUILD_S, OPEN_FORCE_N};
 use super::sorter::Sorter;
 use crate::cell::CellModel;
@@ -18,7 +21,7 @@ use crate::outcome::{
 use crate::planning::{JointTrajectory, PART_OBSTACLE, straight_line};
 use crate::scenario::PartTypeId;
 use crate::sim::JAW_SPEED_M_S;
-use crate::station::{LyingPart, LyingPartFinder, TargetRule, TubeSize};
+use crate::station::{LyingPart, LyingPartFinder, PerceivedObstacle, TargetRule, TubeSize};
 
 /// Rest after a dropped part, before the controller looks for it, s.
 const DROP_SETTLE_S: f64 = 0.5;
@@ -32,6 +35,11 @@ const COLUMN_M: f64 = 0.005;
 const LYING_SEARCH_M: f64 = 0.3;
 /// Step of the straight lines the jaws follow, m.
 const LINE_STEP_M: f64 = 0.01;
+/// A bottle seen now within this of where one was seen before the drop is that bottle, m.
+const BOTTLE_STILL_M: f64 = 0.03;
+/// Picks of a dropped part before it is given up (counted lost): the first pick again, and
+/// one more after a second fall.
+const MAX_PICKS_AFTER_DROP: u32 = 2;
 
 impl CellData {
     /// The gripper's sensors now, read into `watch`: the pads' offsets, the force each jaw
@@ -130,64 +138,72 @@ impl CellData {
 }
 
 impl Sorter<'_> {
-    /// The single part's recovery from a grip the jaws showed weak or empty (`cycle` ended
-    /// there): a weakly held part is set down where it was grasped; then the arm goes home,
-    /// looks again, and picks the part again when it is seen at the station.
+    /// The recovery of the part being handled from a grip the jaws showed weak or empty
+    /// (`cycle` ended there): a weakly held part is set down where it was grasped; then the arm
+    /// goes home, looks again, and picks the part again when it is seen at the station,
+    /// standing or lying. A part that falls again is answered again, up to
+    /// [`MAX_PICKS_AFTER_DROP`] picks; one not seen, or not to be picked, is counted lost.
     pub(crate) fn recover_grip(
         &mut self,
         model: &CellModel,
         data: &mut CellData,
         mut cycle: Cycle,
     ) -> Cycle {
-        let Some((seen_at_s, phase)) = data.faults.drop_seen.take() else {
+        let Some((seen_at_s, mut phase)) = data.faults.drop_seen.take() else {
             return cycle;
         };
         let mut actions = Vec::new();
-        let mut detail = format!("the grip weakened and the part fell during {phase}");
-        let mut set_down = Ok(true);
-        if let Some(force_n) = data.faults.weak_grip_n.take() {
-            actions.push(FaultAction::SawWeakGrip);
-            detail = format!(
-                "the grip weakened to {force_n:.1} N during {phase}; the part was set down"
-            );
-            set_down = self.set_down(model, data);
-            match &set_down {
-                Ok(true) => actions.push(FaultAction::SetDown),
-                Ok(false) => {
-                    actions.push(FaultAction::SawDrop);
-                    detail = format!(
-                        "the grip weakened to {force_n:.1} N during {phase}; the part fell \
-                         while it was brought back"
-                    );
-                }
-                Err(_) => {}
-            }
-        } else {
-            actions.push(FaultAction::SawDrop);
-        }
-        let looked = set_down.and_then(|_| self.look_again_after_drop(model, data));
+        let mut detail = String::new();
         let mut lying = None;
-        match looked {
-            Ok(AtStation::Standing) => {
-                actions.extend([FaultAction::FoundOnBelt, FaultAction::Repicked]);
-                cycle = self.pick_cycle(model, data, None);
-            }
-            Ok(seen) => {
-                if let AtStation::Lying(part) = seen {
-                    actions.push(FaultAction::SawLyingPart);
+        let mut picks = 0;
+        loop {
+            let looked = self.answer_drop(model, data, phase, &mut actions, &mut detail);
+            let again = picks < MAX_PICKS_AFTER_DROP;
+            match looked {
+                Ok(AtStation::Standing) if again => {
+                    actions.extend([FaultAction::FoundOnBelt, FaultAction::Repicked]);
+                    cycle = self.pick_cycle(model, data, None);
+                    if refused_again(model, data, self.current, &mut cycle, &mut actions) {
+                        break;
+                    }
+                }
+                Ok(AtStation::Lying(part, around)) if again => {
+                    actions.extend([FaultAction::SawLyingPart, FaultAction::RepickedLying]);
                     lying = Some(lying_record(model, &part));
+                    cycle = self.repick_lying(model, data, &part, &around, cycle);
+                    if refused_again(model, data, self.current, &mut cycle, &mut actions) {
+                        break;
+                    }
                 }
-                actions.push(FaultAction::CountedLost);
-                let rest = data.part_resting_place(model, self.current);
-                if let Some(failure) = cycle.failure.as_mut() {
-                    failure.detail.push_str(&format!(
-                        "; not seen at the pick station again: counted lost (truth: {rest})"
-                    ));
+                Ok(seen) => {
+                    if let AtStation::Lying(part, _) = seen {
+                        actions.push(FaultAction::SawLyingPart);
+                        lying = Some(lying_record(model, &part));
+                    }
+                    actions.push(FaultAction::CountedLost);
+                    let rest = data.part_resting_place(model, self.current);
+                    let why = if again {
+                        "not seen at the pick station again"
+                    } else {
+                        "fell again after its picks"
+                    };
+                    if let Some(failure) = cycle.failure.as_mut() {
+                        failure
+                            .detail
+                            .push_str(&format!("; {why}: counted lost (truth: {rest})"));
+                    }
+                    break;
+                }
+                Err(failure) => {
+                    actions.push(FaultAction::CountedLost);
+                    cycle.failure = Some(failure);
+                    break;
                 }
             }
-            Err(failure) => {
-                actions.push(FaultAction::CountedLost);
-                cycle.failure = Some(failure);
+            picks += 1;
+            match data.faults.drop_seen.take() {
+                Some((_, fell_in)) => phase = fell_in,
+                None => break,
             }
         }
         let sorted = cycle.failure.is_none();
@@ -197,6 +213,50 @@ impl Sorter<'_> {
             record.saw_lying_part = lying;
         }
         cycle
+    }
+
+    /// The answer to one drop or weak grip the jaws showed during `phase`: a weakly held part
+    /// is set down where it was grasped; then the arm goes home and looks at the station.
+    /// `actions` and `detail` are the fault record's, added to.
+    fn answer_drop(
+        &mut self,
+        model: &CellModel,
+        data: &mut CellData,
+        phase: Phase,
+        actions: &mut Vec<FaultAction>,
+        detail: &mut String,
+    ) -> Result<AtStation, Failure> {
+        let again = !detail.is_empty();
+        let mut said = format!("the grip weakened and the part fell during {phase}");
+        let mut set_down = Ok(true);
+        if let Some(force_n) = data.faults.weak_grip_n.take() {
+            actions.push(FaultAction::SawWeakGrip);
+            said = format!(
+                "the grip weakened to {force_n:.1} N during {phase}; the part was set down"
+            );
+            set_down = self.set_down(model, data);
+            match &set_down {
+                Ok(true) => actions.push(FaultAction::SetDown),
+                Ok(false) => {
+                    actions.push(FaultAction::SawDrop);
+                    said = format!(
+                        "the grip weakened to {force_n:.1} N during {phase}; the part fell \
+                         while it was brought back"
+                    );
+                }
+                Err(_) => {}
+            }
+        } else {
+            actions.push(FaultAction::SawDrop);
+            if again {
+                said = format!("the part fell again during {phase}");
+            }
+        }
+        if again {
+            detail.push_str("; then ");
+        }
+        detail.push_str(&said);
+        set_down.and_then(|_| self.look_again_after_drop(model, data))
     }
 
     /// Brings a weakly held part back over where it was grasped, slowly, and lowers it there
@@ -354,14 +414,17 @@ impl Sorter<'_> {
             belt.belt_center_m[1],
             data.cell.belt_top_z,
         );
+        // In a stream the next item waits a spacing upstream: only what lies nearer the
+        // station than half of that can be the part that fell.
+        let search_m = if scenario.is_stream() {
+            LYING_SEARCH_M.min(scenario.stream.spacing_m / 2.0)
+        } else {
+            LYING_SEARCH_M
+        };
         if let Some(camera) = self.camera {
             let Ok(sighting) = self.look(model, data, camera, TargetRule::NearestStation) else {
                 return AtStation::Nothing;
             };
-            let image = sighting.image.clone();
-            if self.perceive(model, data, Some(sighting)).is_ok() {
-                return AtStation::Standing;
-            }
             let sizes = model
                 .catalogue()
                 .parts()
@@ -377,16 +440,70 @@ impl Sorter<'_> {
             ];
             let calibration = camera.rig().calibration;
             let finder = LyingPartFinder::new(calibration, data.cell.belt_top_z, belt_xy_m, sizes);
-            return finder
-                .find(&image, &station, LYING_SEARCH_M)
-                .map_or(AtStation::Nothing, AtStation::Lying);
+            // The bottles seen before the drop, where they stood: a body found lying where one
+            // of them still is (the bottle fit places one there now too) is that bottle.
+            let bottles_before: Vec<Point3<f64>> = data
+                .faults
+                .checker
+                .iter()
+                .flat_map(|c| c.obstacles())
+                .filter(|o| o.name == "bottle")
+                .map(|o| {
+                    Point3::from(
+                        (self.planner.world_from_base * o.base_from_shape)
+                            .translation
+                            .vector,
+                    )
+                })
+                .collect();
+            let was_bottle = |x: f64, y: f64| {
+                bottles_before
+                    .iter()
+                    .any(|b| (b.x - x).hypot(b.y - y) < BOTTLE_STILL_M)
+            };
+            let lying = finder
+                .find_all(&sighting.image, &station, search_m)
+                .into_iter()
+                .find(|part| {
+                    !sighting.bottles.iter().flat_map(|b| &b.poses).any(|pose| {
+                        let t = pose.world_from_bottle.translation.vector;
+                        on_footprint(part, t.x, t.y) && was_bottle(t.x, t.y)
+                    })
+                });
+            let target = sighting
+                .target
+                .as_ref()
+                .map(|t| t.centre_in_world)
+                .filter(|c| (c - station).xy().norm() < search_m);
+            // A tube lying with its end to the camera can show a bore and the detector take it
+            // for a standing one: where both name one body, the finder (which weighs the
+            // standing outline against the lying one) decides; where they are two, the one
+            // nearer the station is the part that fell.
+            let standing = match (&lying, target) {
+                (_, None) => false,
+                (None, Some(_)) => true,
+                (Some(part), Some(c)) => {
+                    !on_footprint(part, c.x, c.y)
+                        && (c - station).xy().norm() < (part.centre_in_world - station).xy().norm()
+                }
+            };
+            if standing {
+                if self.perceive(model, data, Some(sighting)).is_ok() {
+                    return AtStation::Standing;
+                }
+                return AtStation::Nothing;
+            }
+            return lying.map_or(AtStation::Nothing, |part| {
+                let around = seen_around(model, data, &sighting, &part);
+                AtStation::Lying(part, around)
+            });
         }
         let part = &data.cell.items.parts()[self.current];
         let Some(pose) = data.cell.body_pose(part.body) else {
             return AtStation::Nothing;
         };
         let axis = pose.rotation * Vector3::z();
-        let on_belt = (pose.translation.x - belt.photo_eye_x_m).abs() < LYING_SEARCH_M
+        let on_belt = (pose.translation.x - belt.photo_eye_x_m).abs() < search_m
             && (pose.translation.y - belt.belt_center_m[1]).abs() < belt.width_m / 2.0;
         let instance = &part.instance;
         let standing_z = data.cell.belt_top_z + instance.height_m / 2.0;
@@ -394,14 +511,18 @@ impl Sorter<'_> {
         if on_belt && axis.z > 0.9 && (pose.translation.z - standing_z).abs() < 0.01 {
             AtStation::Standing
         } else if on_belt && axis.z.abs() < 0.3 && (pose.translation.z - lying_z).abs() < 0.01 {
-            AtStation::Lying(LyingPart {
+            let around = perceive_oracle(model, data, self.current)
+                .map(|p| p.obstacles)
+                .unwrap_or_default();
+            let part = LyingPart {
                 centre_in_world: Point3::from(pose.translation.vector),
                 yaw_rad: axis.y.atan2(axis.x).rem_euclid(std::f64::consts::PI),
                 length_m: instance.height_m,
                 diameter_m: 2.0 * instance.outer_radius_m,
                 size_index: instance.type_index,
                 residual_px: 0.0,
-            })
+            };
+            AtStation::Lying(part, around)
         } else {
             AtStation::Nothing
         }
@@ -412,10 +533,35 @@ impl Sorter<'_> {
 enum AtStation {
     /// A part standing there, to be picked again.
     Standing,
-    /// A tube lying on the belt.
-    Lying(LyingPart),
+    /// A tube lying on the belt, and what its pick must clear around it.
+    Lying(LyingPart, Vec<PerceivedObstacle>),
     /// Nothing the controller can act on.
     Nothing,
+}
+
+/// Whether the pick of a fallen part was refused by the planner (the arm never left home):
+/// the part stays where it fell, and is counted lost.
+fn refused_again(
+    model: &CellModel,
+    data: &CellData,
+    current: usize,
+    cycle: &mut Cycle,
+    actions: &mut Vec<FaultAction>,
+) -> bool {
+    let Some(failure) = cycle.failure.as_mut() else {
+        return false;
+    };
+    if !is_refusal(failure.reason) || data.faults.drop_seen.is_some() || cycle.placed_bin.is_some()
+    {
+        return false;
+    }
+    actions.push(FaultAction::CountedLost);
+    let rest = data.part_resting_place(model, current);
+    failure.detail = format!(
+        "the fallen part's pick was refused ({}): counted lost (truth: {rest})",
+        failure.detail
+    );
+    true
 }
 
 /// What the record keeps of a lying part.

@@ -9,6 +9,7 @@ mod feeder;
 mod grip_recovery;
 pub mod judge;
 mod let_through;
+mod lying_repick;
 mod motion_stages;
 mod observer;
 mod perceive;

@@ -171,7 +171,11 @@ fn percept_from(
 
 /// Ground truth read from the world (diagnosis mode): the part at the pick station, and
 /// the bottles and other parts near it as obstacles.
-fn perceive_oracle(model: &CellModel, data: &CellData, current: usize) -> Result<Percept, Failure> {
+pub(super) fn perceive_oracle(
+    model: &CellModel,
+    data: &CellData,
+    current: usize,
+) -> Result<Percept, Failure> {
     let scenario = model.scenario();
     let items = &data.cell.items;
     let handled = &items.parts()[current];

@@ -336,7 +336,7 @@ fn decide(model: &CellModel, percept: &Percept) -> (DecisionRecord, Option<BinId
 
 /// Closes the jaws with `grip_force_n`: the drive runs its stroke to fully closed, then holds; a
 /// part between the jaws stops them short, which is how the grasp is detected.
-fn grasp(
+pub(super) fn grasp(
     model: &CellModel,
     data: &mut CellData,
     grip_force_n: f64,

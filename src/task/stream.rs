@@ -88,7 +88,9 @@ impl Sorter<'_> {
         self.recover_grip(model, data, cycle)
     }
 
-    /// A stream trial. The stream halts at its first fault, as a cell does.
+    /// A stream trial. A part the jaws dropped is looked for and picked again as in a single
+    /// trial; one counted lost is recorded so and the stream goes on with the next item. Any
+    /// other failure halts the stream, as a cell does.
     pub(crate) fn run_stream(
         mut self,
         model: &CellModel,
@@ -116,6 +118,11 @@ impl Sorter<'_> {
             match self.identify_at_eye(model, data) {
                 Ok(AtEye::Part(seen)) => {
                     let cycle = self.pick_cycle(model, data, seen.map(|s| *s));
+                    // A drop the jaws showed: looked for and picked again, standing or lying;
+                    // a part not to be found or picked is counted lost and the stream goes on.
+                    let dropped = data.faults.drop_seen.is_some();
+                    let cycle = self.recover_grip(model, data, cycle);
+                    let lost = dropped && data.faults.counted_lost_last();
                     touched |= cycle.touched;
                     picked |= cycle.picked;
                     displacement_m = displacement_m.max(cycle.displacement_m);
@@ -130,7 +137,14 @@ impl Sorter<'_> {
                     let mut part = stream_part(count_u32(parts.len()), cycle);
                     part.track = track.map(|t| t.0);
                     parts.push(part);
-                    if failed {
+                    if lost {
+                        // What still blocks the eye (the lost part, lying at the station) is
+                        // run past it before the next item is waited for.
+                        if let Err(failure) = data.let_pass(model) {
+                            halt = Some(failure);
+                            break;
+                        }
+                    } else if failed {
                         break;
                     }
                 }
