@@ -108,3 +108,25 @@ fn removals_run_in_camera_mode_and_count_in_the_records() {
         "no camera trial sorted its part after a removal"
     );
 }
+
+/// A bottle ahead of the part trips the photo-eye first and stops the belt with the part up to
+/// 0.3 m upstream, at the camera's edge or out of its view; the cell indexes the belt to the
+/// part. `clutter_dense`'s first 10 camera trials (4 of them found no part before) all find it.
+#[test]
+fn a_part_a_bottle_stopped_the_belt_ahead_of_is_indexed_to() {
+    let path = common::scenario_path("suite/clutter_dense.toml");
+    let scenario = common::scenario("suite/clutter_dense.toml");
+    for record in run(&scenario, &path, Perception::Camera, 10) {
+        println!(
+            "trial {}: {:?} {:?}",
+            record.trial, record.outcome, record.detail
+        );
+        assert_ne!(
+            record.failure,
+            Some(FailureReason::NotDetected),
+            "trial {}: {:?}",
+            record.trial,
+            record.detail
+        );
+    }
+}

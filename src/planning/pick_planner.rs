@@ -236,9 +236,11 @@ impl PickPlanner {
         open: f64,
         q_now: &JointVector,
     ) -> Result<PickPlan, Failure> {
-        let speed = self.speed_fraction;
         let tried = ranking.candidates;
         let mut last_hit = String::new();
+        // Grasps whose blended approach only cut the corner too close to the part, tried
+        // again with a stop over the part once no blended one passes.
+        let mut corner_cut = Vec::new();
         for grasp in &ranking.grasps {
             if grasp.clearance_m < PLANNING_MARGIN_M {
                 if let Some(near) = &grasp.nearest {
@@ -253,39 +255,35 @@ impl PickPlanner {
                 }
                 break;
             }
-            let (Some(&q_above), Some(&q_lift)) = (grasp.down.first(), grasp.up.last()) else {
+            let Some(approach) = self.pick_approach(grasp, checker, open, q_now, true) else {
                 continue;
             };
-            let to_pregrasp = JointTrajectory::through(&self.model, &[*q_now, q_above], speed);
-            let descend = JointTrajectory::along(&self.model, grasp.down.clone(), speed);
-            // The descent starts while the arm still slows down over the part: the fingers
-            // leave the straight line only in that overlap, which is checked against the part
-            // too; after it the fingers go down around the part.
-            let approach = JointTrajectory::join(vec![to_pregrasp, descend], true);
-            let blend_end_s = approach.part_ends_s()[0];
-            let down_s = (blend_end_s, approach.duration_s());
-            let hit = checker
-                .check_span(&approach, down_s, open, None, &[PART_OBSTACLE])
-                .or_else(|| checker.check_span(&approach, (0.0, blend_end_s), open, None, &[]));
-            match hit {
-                Some(hit) => {
+            match approach {
+                Err(hit) => {
+                    if hit.obstacle == PART_OBSTACLE {
+                        corner_cut.push(grasp);
+                    }
                     last_hit = format!(
                         "{} would hit {} at yaw {:.0} deg",
                         hit.link,
                         hit.obstacle,
                         grasp.pose.yaw_rad.to_degrees()
-                    )
+                    );
                 }
-                None => {
+                Ok(plan) => {
                     return Ok(PickPlan {
-                        approach,
-                        pregrasp: q_above,
-                        lift_path: grasp.up.clone(),
-                        lift_end: q_lift,
-                        clearance_m: grasp.clearance_m,
                         candidates: tried,
+                        ..plan
                     });
                 }
+            }
+        }
+        for grasp in corner_cut {
+            if let Some(Ok(plan)) = self.pick_approach(grasp, checker, open, q_now, false) {
+                return Ok(PickPlan {
+                    candidates: tried,
+                    ..plan
+                });
             }
         }
         if ranking.reachable {
@@ -296,6 +294,45 @@ impl PickPlanner {
         } else {
             fail(FailureReason::Unreachable, "no IK solution for any grasp")
         }
+    }
+
+    /// `grasp`'s pick from the arm at `q_now`, the move over the part `blended` into the
+    /// descent or stopping above it, checked by `checker` with the jaws open `open`: the plan,
+    /// or the first hit; `None` when the grasp has no path. The descent starts while a blended
+    /// arm still slows down over the part: the fingers leave the straight line only in that
+    /// overlap, which is checked against the part too; after it the fingers go down around
+    /// the part.
+    fn pick_approach(
+        &self,
+        grasp: &super::ScoredGrasp,
+        checker: &CollisionChecker,
+        open: f64,
+        q_now: &JointVector,
+        blended: bool,
+    ) -> Option<Result<PickPlan, super::CollisionHit>> {
+        let speed = self.speed_fraction;
+        let (Some(&q_above), Some(&q_lift)) = (grasp.down.first(), grasp.up.last()) else {
+            return None;
+        };
+        let to_pregrasp = JointTrajectory::through(&self.model, &[*q_now, q_above], speed);
+        let descend = JointTrajectory::along(&self.model, grasp.down.clone(), speed);
+        let approach = JointTrajectory::join(vec![to_pregrasp, descend], blended);
+        let blend_end_s = approach.part_ends_s()[0];
+        let down_s = (blend_end_s, approach.duration_s());
+        let hit = checker
+            .check_span(&approach, down_s, open, None, &[PART_OBSTACLE])
+            .or_else(|| checker.check_span(&approach, (0.0, blend_end_s), open, None, &[]));
+        Some(match hit {
+            Some(hit) => Err(hit),
+            None => Ok(PickPlan {
+                approach,
+                pregrasp: q_above,
+                lift_path: grasp.up.clone(),
+                lift_end: q_lift,
+                clearance_m: grasp.clearance_m,
+                candidates: 0,
+            }),
+        })
     }
 
     /// `percept`'s part as the jaws carry it: a cylinder standing in the TCP frame, its

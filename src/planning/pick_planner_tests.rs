@@ -553,3 +553,46 @@ fn a_bottle_near_the_part_gets_the_grasp_that_clears_it_most() {
         );
     }
 }
+
+/// Lying bottles around a part, 2 or 3 drawn over direction, yaw and a gap of about 20-80 mm:
+/// every part is picked, clear of them by the planning margin.
+#[test]
+fn lying_bottles_around_a_part_leave_it_pickable() {
+    let planner = planner();
+    let mut rng = crate::rng::SimRng::new(2502);
+    let (b, tau) = (bottle(), std::f64::consts::TAU);
+    for draw in 0..12 {
+        let part = [rng.range(-0.05, 0.15), rng.range(-0.5, -0.4)];
+        let (mut obstacles, count) = (Vec::<PerceivedObstacle>::new(), 2 + rng.below(2));
+        while obstacles.len() < count as usize {
+            let (angle, yaw) = (rng.range(0.0, tau), rng.range(0.0, tau));
+            let (cos, sin) = ((yaw - angle).cos().abs(), (yaw - angle).sin().abs());
+            let half = f64::max(cos * b.height_m / 2.0, sin * b.radius_m).max(b.radius_m);
+            let centre = 0.02 + rng.range(0.02, 0.08) + half;
+            let at = Vector3::new(part[0], part[1], BELT_TOP_Z + b.radius_m)
+                + centre * Vector3::new(angle.cos(), angle.sin(), 0.0);
+            let lying = Isometry3::from_parts(
+                Translation3::from(at),
+                UnitQuaternion::from_euler_angles(0.0, 0.0, yaw)
+                    * UnitQuaternion::from_euler_angles(0.0, std::f64::consts::FRAC_PI_2, 0.0),
+            ) * Isometry3::translation(0.0, 0.0, -b.height_m / 2.0);
+            let candidate = bottle_obstacle(&b, &lying, true, 0.0);
+            let c = candidate.world_from_shape.translation.vector;
+            let apart = obstacles.iter().all(|o| {
+                let d = o.world_from_shape.translation.vector - c;
+                d.x.hypot(d.y) > b.height_m + 0.01
+            });
+            obstacles.extend(apart.then_some(candidate));
+        }
+        let percept = percept(part, obstacles);
+        let checker = planner.checker_for(&percept);
+        match planner.plan_pick(&percept, &checker, &home()) {
+            Ok(plan) => assert!(
+                plan.clearance_m >= super::pick_planner::PLANNING_MARGIN_M,
+                "draw {draw}: clearance {:.4} m",
+                plan.clearance_m
+            ),
+            Err(refusal) => panic!("draw {draw} at {part:?}: {}", refusal.detail),
+        }
+    }
+}

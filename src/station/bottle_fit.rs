@@ -2,6 +2,7 @@
 //! bottle's mesh is projected through the calibrated camera in candidate poses and slid over the
 //! belt until its box matches the detection.
 
+use image::RgbImage;
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 
 use super::silhouette::{Silhouette, box_residual_px};
@@ -13,6 +14,17 @@ use crate::scenario::BottleSection;
 const LYING_YAW_STEPS: usize = 180;
 /// A hypothesis within this box residual of the best one is kept as well, pixels.
 const AMBIGUITY_PX: f64 = 2.0;
+
+/// A lying pose whose axis the image supports less than this share of the best lying pose's
+/// is taken for that one's mirror image in the box, and dropped.
+const MIRROR_SUPPORT_SHARE: f64 = 0.5;
+/// The best lying pose's axis must stand out from the belt around the box by this much (mean
+/// RGB distance, 8-bit levels) for the image to decide between mirrored poses.
+const MIN_AXIS_CONTRAST: f64 = 16.0;
+/// Points sampled along a pose's axis, and the ring around the box the belt is read from,
+/// pixels (inside, outside).
+const AXIS_SAMPLES: usize = 24;
+const RING_PX: (f64, f64) = (3.0, 9.0);
 
 /// One pose of the bottle that explains its detected box.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -126,6 +138,79 @@ impl BottleFitter {
         kept
     }
 
+    /// `poses` (a [`Self::fit`] to `box_px`) less the lying ones the image contradicts. A box
+    /// cannot tell a bottle lying along one of its diagonals from one along the other; the
+    /// pixels can: along the true pose's axis they are the bottle's, along its mirror's mostly
+    /// the belt's. Each lying pose's axis is sampled in `image` (whose pixels are `scale`
+    /// calibration pixels each) and compared with the belt read on a ring around the box;
+    /// poses whose axis differs from the belt less than half as much as the best one's are
+    /// dropped. When even the best axis hardly stands out (a bottle the belt's colour), or the
+    /// ring cannot be read, every pose is kept.
+    pub fn keep_supported(
+        &self,
+        poses: Vec<BottlePose>,
+        box_px: &[f64; 4],
+        image: &RgbImage,
+        scale: f64,
+    ) -> Vec<BottlePose> {
+        if poses.iter().filter(|p| p.lying).count() < 2 {
+            return poses;
+        }
+        let (w, h) = (f64::from(image.width()), f64::from(image.height()));
+        let pixel = |u: f64, v: f64| {
+            let (x, y) = (u * scale, v * scale);
+            (x >= 0.0 && y >= 0.0 && x < w && y < h).then(|| {
+                let p = image.get_pixel(x as u32, y as u32).0;
+                [f64::from(p[0]), f64::from(p[1]), f64::from(p[2])]
+            })
+        };
+        let Some(belt) = ring_median(box_px, pixel) else {
+            return poses;
+        };
+        let distance = |c: [f64; 3]| {
+            ((c[0] - belt[0]).powi(2) + (c[1] - belt[1]).powi(2) + (c[2] - belt[2]).powi(2)).sqrt()
+        };
+        let support = |pose: &BottlePose| {
+            let at = |t: f64| {
+                self.calibration
+                    .project(&(pose.world_from_bottle * Point3::new(0.0, 0.0, t * self.height_m)))
+            };
+            let (Some(a), Some(b)) = (at(0.1), at(0.9)) else {
+                return 0.0;
+            };
+            let samples: Vec<f64> = (0..AXIS_SAMPLES)
+                .filter_map(|k| {
+                    let t = k as f64 / (AXIS_SAMPLES - 1) as f64;
+                    pixel(a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])).map(distance)
+                })
+                .collect();
+            if samples.is_empty() {
+                0.0
+            } else {
+                samples.iter().sum::<f64>() / samples.len() as f64
+            }
+        };
+        let scored: Vec<(BottlePose, f64)> = poses
+            .into_iter()
+            .map(|p| {
+                let s = if p.lying { support(&p) } else { 0.0 };
+                (p, s)
+            })
+            .collect();
+        let best = scored
+            .iter()
+            .filter(|(p, _)| p.lying)
+            .map(|(_, s)| *s)
+            .fold(0.0, f64::max);
+        scored
+            .into_iter()
+            .filter(|(p, s)| {
+                best < MIN_AXIS_CONTRAST || !p.lying || *s >= MIRROR_SUPPORT_SHARE * best
+            })
+            .map(|(p, _)| p)
+            .collect()
+    }
+
     /// Whether two poses occupy nearly the same bounding cylinder (the planner's view of a
     /// bottle, the same whichever end is the base): axes within 10 degrees, middles within 1 cm.
     fn same_cylinder(&self, a: &BottlePose, b: &BottlePose) -> bool {
@@ -135,5 +220,117 @@ impl BottleFitter {
         a.lying == b.lying
             && axis(a).dot(&axis(b)).abs() > 10f64.to_radians().cos()
             && (middle(a) - middle(b)).norm() < 0.01
+    }
+}
+
+/// The median colour of the pixels on a ring `RING_PX` outside `box_px` (`pixel` reads one,
+/// `None` outside the image), or `None` when too few lie in the image.
+fn ring_median(
+    box_px: &[f64; 4],
+    pixel: impl Fn(f64, f64) -> Option<[f64; 3]>,
+) -> Option<[f64; 3]> {
+    let [x0, y0, x1, y1] = *box_px;
+    let mut ring = Vec::new();
+    let mut d = RING_PX.0;
+    while d <= RING_PX.1 {
+        let steps = 32;
+        for k in 0..=steps {
+            let t = f64::from(k) / f64::from(steps);
+            let (u, v) = (
+                x0 - d + t * (x1 - x0 + 2.0 * d),
+                y0 - d + t * (y1 - y0 + 2.0 * d),
+            );
+            ring.extend(pixel(u, y0 - d));
+            ring.extend(pixel(u, y1 + d));
+            ring.extend(pixel(x0 - d, v));
+            ring.extend(pixel(x1 + d, v));
+        }
+        d += 3.0;
+    }
+    if ring.len() < 16 {
+        return None;
+    }
+    let mut median = [0.0; 3];
+    for (c, m) in median.iter_mut().enumerate() {
+        let mut channel: Vec<f64> = ring.iter().map(|p| p[c]).collect();
+        channel.sort_by(f64::total_cmp);
+        *m = channel[channel.len() / 2];
+    }
+    Some(median)
+}
+
+#[cfg(test)]
+mod tests {
+    use image::Rgb;
+    use nalgebra::Vector3;
+
+    use super::*;
+    use crate::rng::SimRng;
+
+    const BELT_TOP_Z: f64 = 0.70;
+
+    /// The default camera: 0.58 m above the station, 44 degrees across 1280 x 960 pixels.
+    fn fitter() -> BottleFitter {
+        let station = Point3::new(0.05, -0.45, BELT_TOP_Z);
+        let eye = station + Vector3::new(0.0, 0.0, 0.58);
+        let pose = CameraCalibration::look_at(&eye, &station, &Vector3::x()).expect("pose");
+        let calibration =
+            CameraCalibration::from_fov(1280, 960, 44f64.to_radians(), pose, BELT_TOP_Z);
+        let bottle = BottleSection {
+            radius_m: 0.033,
+            height_m: 0.2,
+            ..BottleSection::default()
+        };
+        BottleFitter::new(calibration, &bottle)
+    }
+
+    /// A 640 x 480 frame (half the calibration's pixels) of a belt of `belt` with the bottle
+    /// at `pose` painted `paint` over its outline's points and the axis between them.
+    fn frame(f: &BottleFitter, pose: &Isometry3<f64>, belt: u8, paint: u8) -> RgbImage {
+        let mut image = RgbImage::from_pixel(640, 480, Rgb([belt, belt, belt]));
+        for k in 0..=400 {
+            let t = f64::from(k) / 400.0;
+            for (dx, dy) in [(0.0, 0.0), (0.0, 1.0), (0.0, -1.0), (1.0, 0.0), (-1.0, 0.0)] {
+                let local =
+                    Point3::new(dx * f.radius_m * 0.9, dy * f.radius_m * 0.9, t * f.height_m);
+                if let Some([u, v]) = f.calibration.project(&(pose * local)) {
+                    let (x, y) = ((u / 2.0) as u32, (v / 2.0) as u32);
+                    if x < 640 && y < 480 {
+                        image.put_pixel(x, y, Rgb([paint, paint, paint]));
+                    }
+                }
+            }
+        }
+        image
+    }
+
+    /// A lying bottle drawn over place and diagonal yaw: its box fits the pose and its mirror
+    /// about equally; the pixels keep the true one and drop the mirror. A bottle painted the
+    /// belt's colour decides nothing: both stay.
+    #[test]
+    fn the_image_tells_a_lying_bottle_from_its_mirror_in_the_box() {
+        let f = fitter();
+        let mut rng = SimRng::new(2503);
+        for draw in 0..12 {
+            let yaw = rng.range(0.3, 1.2) + if draw % 2 == 0 { 0.0 } else { 1.57 };
+            let (x, y) = (rng.range(-0.05, 0.15), rng.range(-0.5, -0.4));
+            let truth = f.pose_at(true, yaw, x, y, BELT_TOP_Z);
+            let mirror = f.pose_at(true, -yaw, x, y, BELT_TOP_Z);
+            let Some(box_px) = f.projected_box(&truth) else {
+                panic!("draw {draw}: out of view");
+            };
+            let pose = |p: Isometry3<f64>| BottlePose {
+                world_from_bottle: p,
+                lying: true,
+                residual_px: 0.0,
+            };
+            let poses = vec![pose(mirror), pose(truth)];
+            let image = frame(&f, &truth, 90, 220);
+            let kept = f.keep_supported(poses.clone(), &box_px, &image, 0.5);
+            assert_eq!(kept.len(), 1, "draw {draw}");
+            assert_eq!(kept[0].world_from_bottle, truth, "draw {draw}");
+            let plain = frame(&f, &truth, 90, 92);
+            assert_eq!(f.keep_supported(poses, &box_px, &plain, 0.5).len(), 2);
+        }
     }
 }

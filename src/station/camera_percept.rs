@@ -377,11 +377,14 @@ impl CameraPerception {
                 at_beam = Some((d, part, bottle));
             }
             if is_bottle {
+                let box_px = detection.box_px.map(f64::from);
+                let poses = self.bottle_fitter.fit(&box_px, belt_top_z_m);
+                let scale = f64::from(image.width()) / f64::from(self.rig.width_px);
                 bottles.push(BottleSighting {
                     detection: index,
                     poses: self
                         .bottle_fitter
-                        .fit(&detection.box_px.map(f64::from), belt_top_z_m),
+                        .keep_supported(poses, &box_px, &image, scale),
                 });
                 continue;
             }

@@ -9,7 +9,7 @@ use rapier3d::parry::query;
 
 use super::cell_data::CellData;
 use super::let_through::is_refusal;
-use super::pick_cycle::{OPEN_FORCE_N, RELEASE_MARGIN_S, STOP_SETTLE_S, play_part};
+use super::pick_cycle::{Cycle, OPEN_FORCE_N, RELEASE_MARGIN_S, STOP_SETTLE_S, play_part};
 use super::sorter::Sorter;
 use crate::cell::CellModel;
 use crate::kinematics::JointVector;
@@ -18,7 +18,7 @@ use crate::outcome::{Failure, FailureReason, Phase, fail};
 use crate::planning::{CylinderPick, GripCylinder, JointTrajectory};
 use crate::scenario::BinId;
 use crate::sim::JAW_SPEED_M_S;
-use crate::station::{PerceivedObstacle, Percept, part_obstacle};
+use crate::station::{PerceivedObstacle, Percept, TargetRule, part_obstacle};
 
 /// Removals one pick cycle may make before the part is let through.
 pub(crate) const MAX_REMOVALS_PER_CYCLE: u32 = 3;
@@ -40,6 +40,18 @@ const SAME_BOTTLE_OVERLAP_M: f64 = 0.012;
 const MAX_AXIS_SPREAD_DEG: f64 = 15.0;
 /// The jaws closed to less than the body's diameter less this have missed it, m.
 const MISSED_GRIP_M: f64 = 0.006;
+
+/// How far the belt is indexed on between looks for a part that no look found, m: less than
+/// the camera's view along the belt, so a part comes into view before it could pass it.
+const INDEX_STEP_M: f64 = 0.08;
+/// Looks the cell takes, indexing the belt on between them, for a part no look found: enough
+/// for a part the width of the bottles' placement (`bottle.distance_range_m` ends at 0.5 m)
+/// behind the photo-eye.
+const MAX_INDEX_STEPS: usize = 6;
+/// A found part further behind the photo-eye than this is brought under it, m.
+const CENTRED_M: f64 = 0.01;
+/// Time things get to settle after the belt stops, s (as after the photo-eye's stop).
+const INDEX_SETTLE_S: f64 = 0.25;
 
 /// Whether the jaws closed on the bottle.
 enum Grip {
@@ -84,6 +96,52 @@ impl Sorter<'_> {
             && !model.scenario().is_stream()
             && is_refusal(refusal.reason)
             && removals < MAX_REMOVALS_PER_CYCLE
+    }
+
+    /// A single-part trial whose belt a bottle stopped: the photo-eye trips on whatever comes
+    /// first, and a bottle ahead of the part can stop the belt with the part still upstream, at
+    /// the camera's edge or out of its view. When the look at the station found no part
+    /// (`cycle` failed as `not_detected`), the cell indexes the belt on by
+    /// [`INDEX_STEP_M`] and looks again, up to [`MAX_INDEX_STEPS`] times; once a look finds a
+    /// part, the belt brings it under the station (by the look's place for it) and the cycle
+    /// runs again from a fresh look. The oracle (which reads the part wherever it stands) and a
+    /// found part keep `cycle`.
+    pub(crate) fn index_to_part(
+        &mut self,
+        model: &CellModel,
+        data: &mut CellData,
+        cycle: Cycle,
+    ) -> Cycle {
+        let not_seen = cycle
+            .failure
+            .as_ref()
+            .is_some_and(|f| f.reason == FailureReason::NotDetected);
+        let Some(camera) = self.camera else {
+            return cycle;
+        };
+        if !not_seen {
+            return cycle;
+        }
+        let eye_x = model.scenario().conveyor.photo_eye_x_m;
+        for _ in 0..MAX_INDEX_STEPS {
+            if let Err(failure) = run_belt_by(model, data, INDEX_STEP_M) {
+                return self.unreached(model, data, failure);
+            }
+            let Ok(sighting) = self.look(model, data, camera, TargetRule::NearestStation) else {
+                break;
+            };
+            let Some(target) = &sighting.target else {
+                continue;
+            };
+            let behind_m = eye_x - target.centre_in_world.x;
+            if behind_m > CENTRED_M
+                && let Err(failure) = run_belt_by(model, data, behind_m)
+            {
+                return self.unreached(model, data, failure);
+            }
+            return self.pick_cycle(model, data, None);
+        }
+        cycle
     }
 
     /// Finds the bottle that blocks the pick of `percept`'s part and removes it into the waste
@@ -288,6 +346,24 @@ impl Sorter<'_> {
         data.settle(model, DROP_REST_S)?;
         Ok(Grip::Held)
     }
+}
+
+/// Runs the belt `distance_m` on by its drive's commanded travel, stops it, lets things settle
+/// and notes where the bottles came to rest.
+fn run_belt_by(model: &CellModel, data: &mut CellData, distance_m: f64) -> Result<(), Failure> {
+    data.phase = Phase::Pass;
+    let start_m = data.belt.commanded_travel_m();
+    data.belt.run_at(model.scenario().conveyor.speed_m_s);
+    while data.belt.commanded_travel_m() - start_m < distance_m {
+        data.step(model)?;
+    }
+    data.belt.run_at(0.0);
+    while data.cell.conveyor.speed_m_s() > 0.0 {
+        data.step(model)?;
+    }
+    data.settle(model, INDEX_SETTLE_S)?;
+    data.note_bottle_rest(model);
+    Ok(())
 }
 
 /// Whether bottle `index` is in bin `bin`: its base inside the bin and its middle over the

@@ -85,6 +85,7 @@ impl Sorter<'_> {
                 .push(FaultAction::IgnoredFalseTrigger);
             cycle = self.wait_and_pick(model, data);
         }
+        let cycle = self.index_to_part(model, data, cycle);
         self.recover_grip(model, data, cycle)
     }
 
