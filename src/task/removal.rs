@@ -50,8 +50,6 @@ const INDEX_STEP_M: f64 = 0.08;
 const MAX_INDEX_STEPS: usize = 6;
 /// A found part further behind the photo-eye than this is brought under it, m.
 const CENTRED_M: f64 = 0.01;
-/// Time things get to settle after the belt stops, s (as after the photo-eye's stop).
-const INDEX_SETTLE_S: f64 = 0.25;
 
 /// Whether the jaws closed on the bottle.
 enum Grip {
@@ -124,7 +122,8 @@ impl Sorter<'_> {
         }
         let eye_x = model.scenario().conveyor.photo_eye_x_m;
         for _ in 0..MAX_INDEX_STEPS {
-            if let Err(failure) = run_belt_by(model, data, INDEX_STEP_M) {
+            data.phase = Phase::Pass;
+            if let Err(failure) = data.jog_belt(model, INDEX_STEP_M) {
                 return self.unreached(model, data, failure);
             }
             let Ok(sighting) = self.look(model, data, camera, TargetRule::NearestStation) else {
@@ -134,8 +133,9 @@ impl Sorter<'_> {
                 continue;
             };
             let behind_m = eye_x - target.centre_in_world.x;
+            data.phase = Phase::Pass;
             if behind_m > CENTRED_M
-                && let Err(failure) = run_belt_by(model, data, behind_m)
+                && let Err(failure) = data.jog_belt(model, behind_m)
             {
                 return self.unreached(model, data, failure);
             }
@@ -346,24 +346,6 @@ impl Sorter<'_> {
         data.settle(model, DROP_REST_S)?;
         Ok(Grip::Held)
     }
-}
-
-/// Runs the belt `distance_m` on by its drive's commanded travel, stops it, lets things settle
-/// and notes where the bottles came to rest.
-fn run_belt_by(model: &CellModel, data: &mut CellData, distance_m: f64) -> Result<(), Failure> {
-    data.phase = Phase::Pass;
-    let start_m = data.belt.commanded_travel_m();
-    data.belt.run_at(model.scenario().conveyor.speed_m_s);
-    while data.belt.commanded_travel_m() - start_m < distance_m {
-        data.step(model)?;
-    }
-    data.belt.run_at(0.0);
-    while data.cell.conveyor.speed_m_s() > 0.0 {
-        data.step(model)?;
-    }
-    data.settle(model, INDEX_SETTLE_S)?;
-    data.note_bottle_rest(model);
-    Ok(())
 }
 
 /// Whether bottle `index` is in bin `bin`: its base inside the bin and its middle over the
