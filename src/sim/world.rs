@@ -4,6 +4,7 @@ use rapier3d::prelude::*;
 
 use super::Tag;
 use super::idle::IdleArm;
+use super::limits::LimitGate;
 use crate::scenario::PhysicsSection;
 
 /// Solver substeps while no robot collider is within [`CONTACT_MARGIN_M`] of a moving body: the
@@ -79,6 +80,7 @@ pub struct World {
     params: WorldParams,
     steps: u64,
     idle: IdleArm,
+    limits: LimitGate,
 }
 
 impl World {
@@ -111,6 +113,7 @@ impl World {
             params,
             steps: 0,
             idle: IdleArm::new(true),
+            limits: LimitGate::new(true),
         }
     }
 
@@ -118,6 +121,13 @@ impl World {
     /// default; see [`crate::sim::IDLE_STEPS`]). Turning it off wakes the arm at the next step.
     pub fn set_idle_sleep(&mut self, enabled: bool) {
         self.idle.set_enabled(enabled);
+    }
+
+    /// Whether multibody joint limits are handed to the solver only near a limit (on by
+    /// default; see [`crate::sim::LIMIT_MARGIN_RAD`]). Off, every declared limit is on in every
+    /// step, as rapier has it.
+    pub fn set_limit_gating(&mut self, enabled: bool) {
+        self.limits.enabled = enabled;
     }
 
     /// Whether the arm's multibody sleeps now.
@@ -172,6 +182,8 @@ impl World {
     pub fn step_with_hooks(&mut self, hooks: &dyn PhysicsHooks) {
         let clear = !self.robot_contacts_moving_body(f32::INFINITY);
         self.idle.update(&mut self.physics, clear);
+        self.limits
+            .update(&mut self.physics.multibody_joints, self.params.dt_s as f32);
         self.physics.integration_parameters.num_solver_iterations = self.next_solver_iterations();
         self.physics.step_with_events(hooks, &());
         self.steps += 1;
