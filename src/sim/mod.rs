@@ -20,8 +20,8 @@ pub use arm::{ArmGains, ArmLink, FINGER_JOINTS, FINGER_LINKS, JAW_SPEED_M_S, Sim
 pub use conveyor::{BELT_ACCEL_M_S2, ConveyorHooks};
 pub use error::SimError;
 pub use idle::IDLE_STEPS;
-pub use limits::{LIMIT_MARGIN_M, LIMIT_MARGIN_RAD, LOOKAHEAD_STEPS};
 pub use items::{BottleItem, BottlePlacement, ItemSet, PartItem, body_pose, set_body_velocity};
+pub use limits::{LIMIT_MARGIN_M, LIMIT_MARGIN_RAD, LOOKAHEAD_STEPS};
 pub use pad_stiction::{CellHooks, PRESLIDE_RATE_HZ, PadStiction};
 pub use part::{BoreForm, PartInstance};
 pub use tag::{Tag, groups};
