@@ -61,7 +61,8 @@ impl LimitGate {
                 let coords = link.joint().coords();
                 let mut wanted = JointAxesMask::empty();
                 let mut dof = link.assembly_id();
-                for axis in 0..SPATIAL_DIM {
+                let axes = coords.iter().zip(&data.limits).zip(&data.motors);
+                for (axis, ((&q, limits), motor)) in axes.enumerate() {
                     let bit = 1u8 << axis;
                     if data.locked_axes.bits() & bit != 0 {
                         continue;
@@ -72,7 +73,7 @@ impl LimitGate {
                         continue;
                     }
                     let target = if data.motor_axes.bits() & bit != 0 {
-                        data.motors[axis].target_vel.abs()
+                        motor.target_vel.abs()
                     } else {
                         0.0
                     };
@@ -81,10 +82,8 @@ impl LimitGate {
                     } else {
                         LIMIT_MARGIN_RAD
                     } + LOOKAHEAD_STEPS * dt * speed.max(target);
-                    let limits = &data.limits[axis];
-                    let q = coords[axis];
                     // A coordinate that is not a number keeps its limit (the solver decides).
-                    if !self.enabled || !(q - margin > limits.min && q + margin < limits.max) {
+                    if !(self.enabled && q - margin > limits.min && q + margin < limits.max) {
                         wanted |= JointAxesMask::from_bits_truncate(bit);
                     }
                 }
