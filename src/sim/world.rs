@@ -4,6 +4,7 @@ use rapier3d::prelude::*;
 
 use super::Tag;
 use super::idle::IdleArm;
+use super::limits::LimitGate;
 use crate::scenario::PhysicsSection;
 
 /// Solver substeps while no robot collider is within [`CONTACT_MARGIN_M`] of a moving body: the
@@ -79,6 +80,7 @@ pub struct World {
     params: WorldParams,
     steps: u64,
     idle: IdleArm,
+    limits: LimitGate,
 }
 
 impl World {
@@ -111,6 +113,7 @@ impl World {
             params,
             steps: 0,
             idle: IdleArm::new(true),
+            limits: LimitGate::new(true),
         }
     }
 
@@ -118,6 +121,13 @@ impl World {
     /// default; see [`crate::sim::IDLE_STEPS`]). Turning it off wakes the arm at the next step.
     pub fn set_idle_sleep(&mut self, enabled: bool) {
         self.idle.set_enabled(enabled);
+    }
+
+    /// Whether multibody joint limits are handed to the solver only near a limit (on by
+    /// default; see [`crate::sim::LIMIT_MARGIN_RAD`]). Off, every declared limit is on in every
+    /// step, as rapier has it.
+    pub fn set_limit_gating(&mut self, enabled: bool) {
+        self.limits.enabled = enabled;
     }
 
     /// Whether the arm's multibody sleeps now.
@@ -172,6 +182,8 @@ impl World {
     pub fn step_with_hooks(&mut self, hooks: &dyn PhysicsHooks) {
         let clear = !self.robot_contacts_moving_body(f32::INFINITY);
         self.idle.update(&mut self.physics, clear);
+        self.limits
+            .update(&mut self.physics.multibody_joints, self.params.dt_s as f32);
         self.physics.integration_parameters.num_solver_iterations = self.next_solver_iterations();
         self.physics.step_with_events(hooks, &());
         self.steps += 1;
@@ -325,6 +337,57 @@ mod tests {
         }
         let moved = arm.joint_positions(&asleep)[0] - q[0];
         assert!(moved > 0.1, "the woken arm moved {moved} rad");
+    }
+
+    /// Limit axes declared to rapier now, over every multibody link.
+    fn limits_on(world: &World) -> usize {
+        world
+            .physics
+            .multibody_joints
+            .multibodies()
+            .flat_map(|m| m.links())
+            .map(|l| l.joint().data.limit_axes.bits().count_ones() as usize)
+            .sum()
+    }
+
+    #[test]
+    fn a_gated_limit_stops_a_joint_as_the_limit_always_on_does() {
+        let (mut gated, arm) = held_arm(false);
+        let (mut always, _) = held_arm(false);
+        always.set_limit_gating(false);
+        let start = home_q();
+        let upper = 3.04;
+        // The wrist joint driven at 2 rad/s to 0.3 rad past its upper limit.
+        let mut seen_off = false;
+        let mut seen_on = false;
+        for step in 0..480 {
+            let t = (step + 1) as f64 * gated.params().dt_s;
+            let mut q = start;
+            q[5] = (start[5] + 2.0 * t).min(upper + 0.3);
+            let mut qd = [0.0; 6];
+            qd[5] = if q[5] < upper + 0.3 { 2.0 } else { 0.0 };
+            for world in [&mut gated, &mut always] {
+                arm.command(world, &q, &qd);
+                arm.command_gripper(world, 0.02, 40.0);
+                world.step();
+            }
+            let bits = |world: &World| arm.joint_positions(world).map(f64::to_bits);
+            assert_eq!(bits(&gated), bits(&always), "step {step}");
+            // The jaws at 20 mm are far from theirs (4-50 mm): only the wrist's can be on.
+            let wrist = arm.joint_positions(&gated)[5];
+            seen_off |= limits_on(&gated) == 0 && wrist < upper - 0.2;
+            seen_on |= limits_on(&gated) == 1 && wrist > upper - 0.1;
+        }
+        assert!(seen_off && seen_on, "off {seen_off}, on {seen_on}");
+        assert_eq!(limits_on(&always), 8);
+        // The limit is soft (rapier's joint softness against a servo with the wrist's whole
+        // effort): it holds the wrist past its end, but well short of the command.
+        let wrist = arm.joint_positions(&gated)[5];
+        assert!(
+            wrist > upper - 0.01 && wrist < upper + 0.15,
+            "the wrist ended at {wrist} rad, its limit {upper}, commanded {}",
+            upper + 0.3
+        );
     }
 
     #[test]
