@@ -417,6 +417,7 @@ mod tests {
                 cycle_time_s: 7.5,
                 grasp: None,
                 track: Some(0),
+                tracking: None,
             }],
             misidentified: Some(Misidentification {
                 truth: "bottle".into(),

@@ -246,5 +246,6 @@ fn stream_part(index: u32, cycle: Cycle) -> StreamPartRecord {
         cycle_time_s: cycle.cycle_time_s,
         grasp: cycle.grasp,
         track: None,
+        tracking: None,
     }
 }
