@@ -311,6 +311,13 @@ pub struct StreamRecord {
     /// matched it to (absent without a collector, or when nothing reached it).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub collected: Vec<CollectedRecord>,
+    /// Picked from a belt that never stopped (`conveyor.tracking`).
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub tracking: bool,
+}
+
+fn is_false(flag: &bool) -> bool {
+    !*flag
 }
 
 impl StreamRecord {

@@ -214,6 +214,7 @@ impl Sorter<'_> {
                 tracks_opened: self.tracking.as_ref().map_or(0, |t| t.opened()),
                 passed_tracks: passed_tracks.iter().map(|t| t.0).collect(),
                 collected,
+                tracking: false,
             }),
             grasp: None,
             faults,
