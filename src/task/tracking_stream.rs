@@ -29,9 +29,9 @@ use crate::station::Percept;
 
 /// The pick window ends this far before the belt's end, m.
 const WINDOW_END_MARGIN_M: f64 = 0.1;
-/// Time allowed for the grasp and the lift when checking that the arm still reaches where
-/// the belt will have carried the part by the lift's end, s.
-const GRASP_AND_LIFT_ALLOWANCE_S: f64 = 0.9;
+/// Time allowed for the lift when checking that the arm still reaches where the belt will
+/// have carried the part by the lift's end, s (a lift takes 0.2-0.3 s).
+const LIFT_ALLOWANCE_S: f64 = 0.6;
 /// Belt travel after the feeder's last item with nothing latched that ends the stream, m
 /// beyond the spawn distance.
 const DRAIN_TRAVEL_M: f64 = 0.5;
@@ -466,11 +466,15 @@ impl Sorter<'_> {
             let checker = planner.checker_for(&percept);
             let pick = planner.plan_pick(&percept, &checker, &data.q).ok()?;
             let split = pick.approach.part_starts_s().get(1).copied()?;
-            // The arm must still reach where the belt carries the part by the lift's end.
-            let follow_m =
-                speed * (pick.approach.duration_s() - split + GRASP_AND_LIFT_ALLOWANCE_S);
-            self.shifted_ik(&pick.lift_end, follow_m, &pick.lift_end)
-                .ok()?;
+            // The arm must still reach where the belt carries the part by the lift's end: the
+            // whole lift (from the grasp pose up), moved by the travel during the descent,
+            // the jaws' closing and the lift.
+            let close_s = planner.open_offset_m(&percept) / JAW_SPEED_M_S + GRIP_BUILD_S;
+            let follow_s = pick.approach.duration_s() - split + close_s + LIFT_ALLOWANCE_S;
+            let mut near = pick.lift_path.first().copied()?;
+            for q in &pick.lift_path {
+                near = self.shifted_ik(q, speed * follow_s, &near).ok()?;
+            }
             Some((split, pick))
         };
         let problem = InterceptProblem {
