@@ -94,7 +94,6 @@ impl Sorter<'_> {
         while halt.is_none() {
             let count = data.belt.encoder_counts();
             if !watch.parts.is_empty() {
-                let speed = belt.speed_m_s;
                 let started = std::time::Instant::now();
                 // Every part queued, met where it can be; the earliest meet is picked, those
                 // that can no longer be met ride on, the rest wait for the next round.
@@ -102,7 +101,7 @@ impl Sorter<'_> {
                     .parts
                     .drain(..)
                     .map(|item| {
-                        let meet = self.plan_intercept(data, &item, window, speed);
+                        let meet = self.plan_intercept(model, data, &item, window);
                         (item, meet)
                     })
                     .collect();
@@ -409,15 +408,18 @@ impl Sorter<'_> {
         };
         let carry = &place.carry;
         let split_s = carry.part_starts_s().get(1).copied().unwrap_or(0.0);
-        let play = Play::span(Phase::Lift, carry, (0.0, split_s)).follow(lift_follow);
-        self.play_watching(model, data, watch, play, Some(&mut held))?;
         let over = (split_s, carry.duration_s());
-        let play = Play::span(Phase::Transport, carry, over).settle(STOP_SETTLE_S);
-        self.play_watching(model, data, watch, play, Some(&mut held))?;
         let lower = (0.0, place.lower.duration_s());
-        let play = Play::span(Phase::Place, &place.lower, lower).settle(STOP_SETTLE_S);
-        self.play_watching(model, data, watch, play, Some(&mut held))?;
-        tracking.jaw_drift_mm = held.drift_mm;
+        let plays = [
+            Play::span(Phase::Lift, carry, (0.0, split_s)).follow(lift_follow),
+            Play::span(Phase::Transport, carry, over).settle(STOP_SETTLE_S),
+            Play::span(Phase::Place, &place.lower, lower).settle(STOP_SETTLE_S),
+        ];
+        for play in plays {
+            let played = self.play_watching(model, data, watch, play, Some(&mut held));
+            tracking.jaw_drift_mm = held.drift_mm;
+            played?;
+        }
         data.phase = Phase::Release;
         let pads = data.cell.arm.finger_positions_m(&data.cell.world);
         data.gripper
@@ -454,11 +456,13 @@ impl Sorter<'_> {
     /// it sets off, and the pick planned for the part there. `None`: it cannot be met.
     fn plan_intercept(
         &self,
+        model: &CellModel,
         data: &CellData,
         item: &Latched,
         window: (f64, f64),
-        speed: f64,
     ) -> Option<Meet> {
+        let speed = model.scenario().conveyor.speed_m_s;
+        let bin = decide(model, &item.percept).1;
         let planner = &self.planner;
         let x_latch = item.percept.part_xy[0];
         let pick_at = |x: f64| {
@@ -471,9 +475,18 @@ impl Sorter<'_> {
             // the jaws' closing and the lift.
             let close_s = planner.open_offset_m(&percept) / JAW_SPEED_M_S + GRIP_BUILD_S;
             let follow_s = pick.approach.duration_s() - split + close_s + LIFT_ALLOWANCE_S;
-            let mut near = pick.lift_path.first().copied()?;
-            for q in &pick.lift_path {
-                near = self.shifted_ik(q, speed * follow_s, &near).ok()?;
+            match bin {
+                Some(bin) => {
+                    let lift_x = x + speed * follow_s;
+                    self.place_at(model, data, item, (&pick, x), lift_x, bin)
+                        .ok()?;
+                }
+                None => {
+                    let mut near = pick.lift_path.first().copied()?;
+                    for q in &pick.lift_path {
+                        near = self.shifted_ik(q, speed * follow_s, &near).ok()?;
+                    }
+                }
             }
             Some((split, pick))
         };
@@ -504,46 +517,13 @@ impl Sorter<'_> {
         meet_x: f64,
         bin: BinId,
     ) -> Result<(f64, PlacePlan), Failure> {
-        let planner = &self.planner;
         let speed = model.scenario().conveyor.speed_m_s;
         let x_now = item.x_at(data.belt.encoder_counts());
-        let x_latch = item.percept.part_xy[0];
         let mut lift_s = 0.5;
         let mut planned = None;
         for _ in 0..3 {
             let lift_x = x_now + speed * lift_s;
-            let dx = lift_x - meet_x;
-            let mut path = Vec::with_capacity(pick.lift_path.len());
-            let mut near = pick.lift_path.first().copied().unwrap_or(pick.lift_end);
-            for q in &pick.lift_path {
-                near = self.shifted_ik(q, dx, &near)?;
-                path.push(near);
-            }
-            let lifted = PickPlan {
-                approach: pick.approach.clone(),
-                pregrasp: pick.pregrasp,
-                lift_end: path.last().copied().unwrap_or(near),
-                lift_path: path,
-                clearance_m: pick.clearance_m,
-                candidates: pick.candidates,
-            };
-            let percept = shifted(&item.percept, lift_x - x_latch);
-            let checker = planner.checker_for(&percept);
-            let bin_body = &data.cell.bins[bin.0];
-            let placed_before = data.bin_fill[bin.0];
-            let payload = Payload {
-                mass_kg: model.catalogue().part(percept.part_type).mass_kg(),
-                grip_force_n: self.grip_recipe_n,
-                pad_friction: model.scenario().gripper.pad_friction,
-            };
-            let place = planner.plan_place(
-                &percept,
-                bin_body,
-                placed_before,
-                &lifted,
-                &payload,
-                &checker,
-            )?;
+            let place = self.place_at(model, data, item, (pick, meet_x), lift_x, bin)?;
             let new_lift_s = place.carry.part_starts_s().get(1).copied().unwrap_or(0.0);
             let settled = (new_lift_s - lift_s).abs() * speed < 0.000_2;
             lift_s = new_lift_s;
@@ -553,6 +533,52 @@ impl Sorter<'_> {
             }
         }
         planned.ok_or_else(|| Failure::new(FailureReason::Panic, "no lift planned"))
+    }
+
+    /// The place of `item`'s part into `bin` after a lift from the grasp of `pick` (planned
+    /// for the part at `meet_x`) moved to where the part stands at `lift_x` along the belt.
+    fn place_at(
+        &self,
+        model: &CellModel,
+        data: &CellData,
+        item: &Latched,
+        (pick, meet_x): (&PickPlan, f64),
+        lift_x: f64,
+        bin: BinId,
+    ) -> Result<PlacePlan, Failure> {
+        let planner = &self.planner;
+        let dx = lift_x - meet_x;
+        let mut path = Vec::with_capacity(pick.lift_path.len());
+        let mut near = pick.lift_path.first().copied().unwrap_or(pick.lift_end);
+        for q in &pick.lift_path {
+            near = self.shifted_ik(q, dx, &near)?;
+            path.push(near);
+        }
+        let lifted = PickPlan {
+            approach: pick.approach.clone(),
+            pregrasp: pick.pregrasp,
+            lift_end: path.last().copied().unwrap_or(near),
+            lift_path: path,
+            clearance_m: pick.clearance_m,
+            candidates: pick.candidates,
+        };
+        let percept = shifted(&item.percept, lift_x - item.percept.part_xy[0]);
+        let checker = planner.checker_for(&percept);
+        let payload = Payload {
+            mass_kg: model.catalogue().part(percept.part_type).mass_kg(),
+            grip_force_n: self.grip_recipe_n,
+            pad_friction: model.scenario().gripper.pad_friction,
+        };
+        let bin_body = &data.cell.bins[bin.0];
+        let placed_before = data.bin_fill[bin.0];
+        planner.plan_place(
+            &percept,
+            bin_body,
+            placed_before,
+            &lifted,
+            &payload,
+            &checker,
+        )
     }
 }
 
