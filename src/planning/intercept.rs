@@ -11,12 +11,18 @@
 //! The search walks the window at [`GRID_STEP_M`] from the part's place (or the window's start,
 //! when the part has not yet reached it) to its end, and bisects the first step that crosses
 //! from "the part gets there first" to "the arm does", so a window whose reachable stretch
-//! starts late, or has holes, is still met at its first reachable place.
+//! starts late, or has holes, is still met at its first reachable place; a step in which the
+//! reach ends is bisected for its end, where the arm may still be in time. Where the arm is no
+//! slower than the belt the time the arm has to spare only grows along the belt until the reach
+//! ends, and the search misses no meet; an arm slower than the belt may have a stretch of spare
+//! time shorter than a step, which the walk can pass over.
 
 /// Step of the walk along the window, m.
 pub const GRID_STEP_M: f64 = 0.03;
 /// Bisection steps on the crossing step: the meet is found to within 1 mm.
 const BISECTIONS: u32 = 5;
+/// Bisection steps on a step in which the reach ends: its end found to within 10 µm.
+const BOUNDARY_BISECTIONS: u32 = 12;
 
 /// A part on the moving belt and the stretch in which the arm may meet it.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -80,10 +86,50 @@ impl InterceptProblem {
                     return Some(self.meet(early, early_t));
                 }
                 Some(_) => before = Some(x),
-                None => before = None,
+                None => {
+                    // The reach ends within the step: the stretch from the late place to the
+                    // reach's end may still hold a meet.
+                    if let Some(late) = before
+                        && let Some(meet) = self.meet_before_reach_ends(late, x, &mut slack)
+                    {
+                        return Some(meet);
+                    }
+                    before = None;
+                }
             }
         }
         None
+    }
+
+    /// Between `late` (reachable, the arm late) and `gone` (unreachable): the last reachable
+    /// place, found by bisection, and the first meet before it, when the arm is in time there.
+    fn meet_before_reach_ends(
+        &self,
+        late: f64,
+        gone: f64,
+        slack: &mut impl FnMut(f64) -> Option<(f64, f64)>,
+    ) -> Option<Intercept> {
+        let (mut reach, mut beyond) = (late, gone);
+        for _ in 0..BOUNDARY_BISECTIONS {
+            let mid = 0.5 * (reach + beyond);
+            match slack(mid) {
+                Some(_) => reach = mid,
+                None => beyond = mid,
+            }
+        }
+        let (s, t) = slack(reach)?;
+        if s < 0.0 {
+            return None;
+        }
+        let (mut late, mut early, mut early_t) = (late, reach, t);
+        for _ in 0..BISECTIONS {
+            let mid = 0.5 * (late + early);
+            match slack(mid) {
+                Some((s, t)) if s >= 0.0 => (early, early_t) = (mid, t),
+                _ => late = mid,
+            }
+        }
+        Some(self.meet(early, early_t))
     }
 
     fn meet(&self, x_m: f64, arrival_s: f64) -> Intercept {
@@ -149,13 +195,19 @@ mod tests {
                     }
                 }
                 None => {
-                    // Nowhere along the window (finely sampled) is the arm in time.
+                    // Nowhere along the window is the arm in time: sampled finely where the
+                    // arm is faster than the belt, at the walk's places otherwise.
                     let from = window.0.max(part_now);
+                    let step = if arm_speed > speed {
+                        0.001
+                    } else {
+                        GRID_STEP_M
+                    };
                     let mut x = from;
                     while x <= window.1 {
                         let in_time = arrival(x).is_some_and(|t| t <= problem.part_at_s(x));
                         assert!(!in_time, "missed a meet at {x}");
-                        x += 0.001;
+                        x += step;
                     }
                 }
             }
