@@ -94,3 +94,103 @@ impl TrackingSummary {
         })
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::outcome::{FailureReason, PartRecord, PartTracking, StreamPartRecord, StreamRecord};
+
+    fn part(index: u32, outcome: Outcome, tracking: Option<PartTracking>) -> StreamPartRecord {
+        StreamPartRecord {
+            index,
+            outcome,
+            failure: None,
+            detail: None,
+            part: PartRecord {
+                part_type: "axle_a20".into(),
+                true_roundness_mm: 0.1,
+                true_bore_diameter_mm: 20.0,
+                truly_acceptable: true,
+                clear_cut: true,
+                correct_bin: "group_a".into(),
+            },
+            decision: None,
+            placed_bin: None,
+            cycle_time_s: 0.0,
+            grasp: None,
+            track: None,
+            tracking,
+        }
+    }
+
+    fn stream(tracking: bool, parts: Vec<StreamPartRecord>, margin: f64) -> TrialRecord {
+        let mut record = TrialRecord::failed(0, 1, FailureReason::Timeout, "");
+        record.motion.joint_limit_margin_rad = margin;
+        let sorted = parts
+            .iter()
+            .filter(|p| p.outcome == Outcome::Success)
+            .count();
+        record.stream = Some(StreamRecord {
+            parts_planned: 4,
+            parts_sorted: sorted as u32,
+            bottles_passed: 0,
+            belt_stops: 0,
+            parts,
+            misidentified: None,
+            tracks_opened: 0,
+            passed_tracks: Vec::new(),
+            collected: Vec::new(),
+            tracking,
+        });
+        record
+    }
+
+    #[test]
+    fn only_tracking_streams_count_and_their_figures_are_means_and_maxima() {
+        let met = |latch, error, drift| {
+            Some(PartTracking {
+                latch_to_grasp_s: latch,
+                tracking_error_mm: error,
+                jaw_drift_mm: drift,
+            })
+        };
+        let tracked = stream(
+            true,
+            vec![
+                part(0, Outcome::Success, met(1.0, 0.5, 0.2)),
+                part(1, Outcome::Passed, None),
+                part(2, Outcome::Success, met(2.0, 1.5, 0.4)),
+                part(3, Outcome::Passed, None),
+            ],
+            0.3,
+        );
+        let stop_and_go = stream(false, vec![part(0, Outcome::Success, None)], -0.5);
+        assert_eq!(
+            TrackingSummary::of(std::slice::from_ref(&stop_and_go)),
+            None
+        );
+        let Some(summary) = TrackingSummary::of(&[tracked, stop_and_go]) else {
+            panic!("no summary");
+        };
+        assert_eq!(summary.sorted_share, 0.5);
+        assert_eq!(summary.parts_unpicked, 2);
+        assert_eq!(summary.parts_grasped, 2);
+        assert_eq!(
+            summary.latch_to_grasp_s,
+            MeanMax {
+                mean: 1.5,
+                max: 2.0
+            }
+        );
+        assert_eq!(
+            summary.tracking_error_mm,
+            MeanMax {
+                mean: 1.0,
+                max: 1.5
+            }
+        );
+        assert!((summary.jaw_drift_mm.max - 0.4).abs() < 1e-12);
+        // The stop-and-go trial's margin is not the tracking streams'.
+        assert_eq!(summary.joint_limit_margin_rad, 0.3);
+    }
+}
