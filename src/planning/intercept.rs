@@ -56,17 +56,7 @@ impl InterceptProblem {
     /// before the part has passed it. `arrival(x)` is the arm's time to be ready over `x`.
     pub fn solve(&self, mut arrival: impl FnMut(f64) -> Option<f64>) -> Option<Intercept> {
         let (start, end) = self.window_m;
-        if self.speed_m_s == 0.0 {
-            // A stopped belt: the part is met where it stands, when the arm gets there.
-            let x = self.part_now_m;
-            let t = (start..=end).contains(&x).then(|| arrival(x)).flatten()?;
-            return Some(Intercept {
-                at_m: x,
-                meet_s: t,
-                arrival_s: t,
-            });
-        }
-        if self.speed_m_s.is_nan() || self.speed_m_s < 0.0 || end < start {
+        if self.speed_m_s.is_nan() || self.speed_m_s <= 0.0 || end < start {
             return None;
         }
         let from = start.max(self.part_now_m);
@@ -148,40 +138,6 @@ impl InterceptProblem {
             meet_s: self.part_at_s(x_m),
             arrival_s,
         }
-    }
-}
-
-/// The last place in `window` (first, last, m) that is `reachable`, found by walking back from
-/// its end at [`GRID_STEP_M`] and bisecting the step in which the reach begins to within 10 µm;
-/// `None` where no place the walk tries is. On a belt that stops, a part must stand still by
-/// there to be picked.
-pub fn last_reachable(window: (f64, f64), mut reachable: impl FnMut(f64) -> bool) -> Option<f64> {
-    let (start, end) = window;
-    if end.is_nan() || start.is_nan() || end < start {
-        return None;
-    }
-    if reachable(end) {
-        return Some(end);
-    }
-    let mut beyond = end;
-    loop {
-        let x = (beyond - GRID_STEP_M).max(start);
-        if reachable(x) {
-            let mut reach = x;
-            for _ in 0..BOUNDARY_BISECTIONS {
-                let mid = 0.5 * (reach + beyond);
-                if reachable(mid) {
-                    reach = mid;
-                } else {
-                    beyond = mid;
-                }
-            }
-            return Some(reach);
-        }
-        if x <= start {
-            return None;
-        }
-        beyond = x;
     }
 }
 
@@ -270,42 +226,10 @@ mod tests {
         assert_eq!(past.solve(arrival), None);
         let stopped = InterceptProblem {
             speed_m_s: 0.0,
+            part_now_m: 0.1,
             ..past
         };
         assert_eq!(stopped.solve(arrival), None);
-    }
-
-    #[test]
-    fn a_part_on_a_stopped_belt_is_met_where_it_stands_if_the_arm_reaches_it() {
-        let stopped = InterceptProblem {
-            part_now_m: 0.3,
-            speed_m_s: 0.0,
-            window_m: (0.0, 0.8),
-        };
-        let m = stopped.solve(|_| Some(0.7)).expect("no meet");
-        assert_eq!((m.at_m, m.meet_s, m.arrival_s), (0.3, 0.7, 0.7));
-        let out_of_reach = arm(0.0, 1.0, 0.5, (0.4, 0.8));
-        assert_eq!(stopped.solve(out_of_reach), None);
-    }
-
-    #[test]
-    fn the_last_reachable_place_is_the_reach_s_end_within_the_window() {
-        let mut rng = SimRng::new(2626);
-        for _ in 0..500 {
-            let window = (-0.2 + 0.4 * rng.uniform(), 0.3 + 0.6 * rng.uniform());
-            let reach = (-0.4 + 0.8 * rng.uniform(), -0.2 + 1.2 * rng.uniform());
-            let reachable = |x: f64| (reach.0..=reach.1).contains(&x);
-            let found = last_reachable(window, reachable);
-            let (lo, hi) = (window.0.max(reach.0), window.1.min(reach.1));
-            match found {
-                Some(x) => {
-                    assert!(reachable(x) && x >= window.0 && x <= window.1, "{x}");
-                    assert!(hi - x < 1e-4, "{x} short of the reach's end {hi}");
-                }
-                // Only a stretch narrower than the walk's step can be passed over.
-                None => assert!(hi < lo || hi - lo < GRID_STEP_M, "{reach:?} in {window:?}"),
-            }
-        }
     }
 
     #[test]

@@ -13,14 +13,11 @@ use super::at_eye::AtEye;
 use super::cell_data::CellData;
 use super::sorter::Sorter;
 use crate::cell::CellModel;
-use crate::control::{BELT_ACCEL_M_S2, ENCODER_M_PER_COUNT, HoldMonitor};
+use crate::control::{ENCODER_M_PER_COUNT, HoldMonitor};
 use crate::kinematics::{IkSolver, JointVector, tcp_pose};
 use crate::outcome::{Failure, FailureReason, Phase};
 use crate::planning::JointTrajectory;
 use crate::station::{Percept, TrackEnd, TrackId};
-
-/// A held belt stops this much short of a part's standing limit besides its braking, m.
-const HOLD_MARGIN_M: f64 = 0.005;
 
 /// An item the photo-eye latched and the camera (or the oracle) saw there.
 pub(super) struct Latched {
@@ -34,45 +31,9 @@ pub(super) struct Latched {
     pub(super) percept: Percept,
     /// Its track.
     pub(super) track: Option<TrackId>,
-    /// Its standing limit: the last place along the belt at which the arm can pick it from a
-    /// stopped belt (`None`: nowhere in the window).
-    pub(super) limit_x: Option<f64>,
 }
 
 impl Latched {
-    /// Whether the belt, stopped now, would come to a stand with the part between its
-    /// standing limit (less one tick's travel, and the encoder's count) and that limit.
-    pub(super) fn must_hold(&self, data: &CellData) -> bool {
-        let Some(limit) = self.limit_x else {
-            return false;
-        };
-        let speed = f64::from(data.cell.conveyor.speed_m_s());
-        let dt = data.cell.world.params().dt_s;
-        let stop_m = speed * speed / (2.0 * BELT_ACCEL_M_S2) + 2.0 * speed * dt + HOLD_MARGIN_M;
-        let x = self.x_at(data.belt.encoder_counts());
-        x <= limit && x + stop_m >= limit
-    }
-
-    /// How long until the belt, running on, must be stopped for the part (`None`: it is not
-    /// held), s.
-    pub(super) fn hold_lead_s(&self, data: &CellData) -> Option<f64> {
-        let limit = self.limit_x?;
-        let speed = f64::from(data.cell.conveyor.speed_m_s()).max(1e-3);
-        let stop_m = speed * speed / (2.0 * BELT_ACCEL_M_S2) + HOLD_MARGIN_M;
-        let gap = limit - stop_m - self.x_at(data.belt.encoder_counts());
-        (gap >= 0.0).then_some(gap / speed)
-    }
-
-    /// Whether the belt, stopped now, still brings the part to a stand by its standing limit.
-    pub(super) fn can_hold(&self, data: &CellData) -> bool {
-        let Some(limit) = self.limit_x else {
-            return false;
-        };
-        let speed = f64::from(data.cell.conveyor.speed_m_s());
-        let stop_m = speed * speed / (2.0 * BELT_ACCEL_M_S2);
-        self.x_at(data.belt.encoder_counts()) + stop_m <= limit
-    }
-
     /// Where the part stands along the belt (world x) at encoder count `count`, m.
     pub(super) fn x_at(&self, count: i64) -> f64 {
         self.percept.part_xy[0] + (count - self.count) as f64 * ENCODER_M_PER_COUNT
@@ -82,7 +43,7 @@ impl Latched {
 /// What the eye has latched and what came of it, over a tracking stream.
 #[derive(Default)]
 pub(super) struct EyeWatch {
-    pub(super) eye_was: bool,
+    eye_was: bool,
     /// Parts latched and not yet picked or given up, oldest first.
     pub(super) parts: VecDeque<Latched>,
     /// Items the eye latched.
@@ -94,15 +55,6 @@ pub(super) struct EyeWatch {
     pub(super) bottles: u32,
     /// Items latched that perception could not make out (they ride on), with why.
     pub(super) unseen: Vec<String>,
-    /// The pick window along the belt, m.
-    pub(super) window: (f64, f64),
-    /// Whether the arm is busy with a part off the belt (carry, place, release, return): a
-    /// part queued that would pass its standing limit stops the belt then.
-    pub(super) busy: bool,
-    /// Whether the belt is held stopped for a part queued.
-    pub(super) held: bool,
-    /// How many times the belt was held.
-    pub(super) holds: u32,
 }
 
 /// The arm moved with the belt: the plan was made for the part at `plan_x_m` along the belt.
@@ -170,11 +122,6 @@ impl Sorter<'_> {
             self.latch(model, data, watch)?;
         }
         watch.eye_was = blocked;
-        if watch.busy && !watch.held && watch.parts.iter().any(|p| p.must_hold(data)) {
-            data.belt.run_at(0.0);
-            watch.held = true;
-            watch.holds += 1;
-        }
         Ok(())
     }
 
@@ -203,18 +150,13 @@ impl Sorter<'_> {
             }
             Ok(AtEye::Part(seen)) => {
                 match self.perceive(model, data, seen.map(|s| *s)) {
-                    Ok(percept) => {
-                        let mut latched = Latched {
-                            count,
-                            time_s,
-                            part: at_beam,
-                            percept,
-                            track,
-                            limit_x: None,
-                        };
-                        latched.limit_x = self.standing_limit(model, data, &latched, watch.window);
-                        watch.parts.push_back(latched);
-                    }
+                    Ok(percept) => watch.parts.push_back(Latched {
+                        count,
+                        time_s,
+                        part: at_beam,
+                        percept,
+                        track,
+                    }),
                     Err(f) => watch.unseen.push(f.detail),
                 }
                 Ok(())

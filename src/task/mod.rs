@@ -20,7 +20,6 @@ mod runner;
 mod sorter;
 mod stream;
 mod tracking;
-mod intercept_plan;
 mod tracking_stream;
 
 pub use crate::outcome::Phase;

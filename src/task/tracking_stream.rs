@@ -13,7 +13,6 @@
 
 use super::belt_follow::{EyeWatch, Follow, HeldPart, Latched, Play};
 use super::cell_data::CellData;
-use super::intercept_plan::Meet;
 use super::judge::{self, CycleEvidence};
 use super::pick_cycle::{GRIP_BUILD_S, OPEN_FORCE_N, RELEASE_MARGIN_S, STOP_SETTLE_S, decide};
 use super::sorter::Sorter;
@@ -23,11 +22,16 @@ use crate::outcome::{
     Failure, FailureReason, GraspRecord, Outcome, PartTracking, Phase, StreamPartRecord,
     StreamRecord, TrialRecord,
 };
+use crate::planning::{InterceptProblem, Payload, PickPlan, PlacePlan};
 use crate::scenario::{BinId, PartTypeId};
 use crate::sim::JAW_SPEED_M_S;
+use crate::station::Percept;
 
 /// The pick window ends this far before the belt's end, m.
 const WINDOW_END_MARGIN_M: f64 = 0.1;
+/// Time allowed for the lift when checking that the arm still reaches where the belt will
+/// have carried the part by the lift's end, s (a lift takes 0.2-0.3 s).
+const LIFT_ALLOWANCE_S: f64 = 0.6;
 /// Belt travel after the feeder's last item with nothing latched that ends the stream, m
 /// beyond the spawn distance.
 const DRAIN_TRAVEL_M: f64 = 0.5;
@@ -38,6 +42,27 @@ struct TrackedCycle {
     placed_bin: Option<BinId>,
     touched: bool,
     picked: bool,
+}
+
+/// Where and when the arm meets a part, and the pick planned for it there.
+struct Meet {
+    /// The place along the belt (world x), m.
+    x_m: f64,
+    /// When the part gets there, s from the planning.
+    meet_s: f64,
+    /// How long the arm waits before it sets off, s.
+    wait_s: f64,
+    pick: PickPlan,
+}
+
+/// `percept` moved `dx_m` along the belt, with everything it saw near the part.
+fn shifted(percept: &Percept, dx_m: f64) -> Percept {
+    let mut moved = percept.clone();
+    moved.part_xy[0] += dx_m;
+    for obstacle in &mut moved.obstacles {
+        obstacle.world_from_shape.translation.vector.x += dx_m;
+    }
+    moved
 }
 
 impl Sorter<'_> {
@@ -60,10 +85,7 @@ impl Sorter<'_> {
         data.belt = BeltDrive::default();
         data.belt.run_at(belt.speed_m_s);
         self.tracking = Some(super::at_eye::stream_tracking(model, data));
-        let mut watch = EyeWatch {
-            window,
-            ..EyeWatch::default()
-        };
+        let mut watch = EyeWatch::default();
         let mut parts: Vec<StreamPartRecord> = Vec::new();
         let (mut touched, mut picked) = (false, false);
         let mut halt: Option<Failure> = None;
@@ -71,65 +93,19 @@ impl Sorter<'_> {
         let mut fed = (data.feeder.remaining().count(), data.belt.encoder_counts());
         while halt.is_none() {
             let count = data.belt.encoder_counts();
-            if watch.held && data.cell.conveyor.speed_m_s() > 0.0 {
-                // The belt held: the arm waits for it to stand.
-                data.hold();
-                if let Err(f) = self.tick_watching(model, data, &mut watch) {
-                    halt = Some(f);
-                }
-                continue;
-            }
             if !watch.parts.is_empty() {
                 let started = std::time::Instant::now();
-                let speed = if watch.held { 0.0 } else { belt.speed_m_s };
                 // Every part queued, met where it can be; the earliest meet is picked, those
                 // that can no longer be met ride on, the rest wait for the next round.
                 let mut met: Vec<(Latched, Option<Meet>)> = watch
                     .parts
                     .drain(..)
                     .map(|item| {
-                        let meet = self.plan_intercept(model, data, &item, window, speed);
+                        let meet = self.plan_intercept(model, data, &item, window);
                         (item, meet)
                     })
                     .collect();
                 data.timing.planning_ms += started.elapsed().as_secs_f64() * 1e3;
-                let unmet =
-                    |(item, meet): &(Latched, Option<Meet>)| meet.is_none() && item.can_hold(data);
-                if watch.held && met.iter().all(|(_, m)| m.is_none()) {
-                    // Nothing can be picked from the stopped belt: it runs again, and the
-                    // parts in the window ride on.
-                    data.belt.run_at(belt.speed_m_s);
-                    watch.held = false;
-                    for (mut item, _) in met {
-                        if item.x_at(count) >= window.0 {
-                            item.limit_x = None;
-                        }
-                        watch.parts.push_back(item);
-                    }
-                    continue;
-                }
-                if !watch.held && met.iter().all(|(_, m)| m.is_none()) && met.iter().any(unmet) {
-                    // No part can be met moving: the belt runs on until one comes to its
-                    // standing limit, and is held there.
-                    let lead_s = met
-                        .iter()
-                        .filter_map(|(item, _)| item.hold_lead_s(data))
-                        .fold(f64::INFINITY, f64::min);
-                    watch.parts.extend(met.into_iter().map(|(item, _)| item));
-                    let dt = data.cell.world.params().dt_s;
-                    watch.busy = true;
-                    let lead_s = if lead_s.is_finite() {
-                        lead_s.max(dt)
-                    } else {
-                        dt
-                    };
-                    let waited = self.wait_watching(model, data, &mut watch, lead_s);
-                    watch.busy = false;
-                    if let Err(f) = waited {
-                        halt = Some(f);
-                    }
-                    continue;
-                }
                 let first = met
                     .iter()
                     .enumerate()
@@ -138,9 +114,7 @@ impl Sorter<'_> {
                     .map(|(i, _)| i);
                 let chosen = first.map(|i| met.remove(i));
                 for (item, meet) in met {
-                    // On a held belt a part not met stays for when the belt runs.
                     match meet {
-                        _ if watch.held || item.can_hold(data) => watch.parts.push_back(item),
                         Some(_) => watch.parts.push_back(item),
                         None => {
                             let part_no = parts.len() as u32;
@@ -154,7 +128,6 @@ impl Sorter<'_> {
                 if let Some((item, meet)) = chosen {
                     let part_no = parts.len() as u32;
                     let cycle = self.tracked_pick(model, data, &mut watch, &item, part_no, meet);
-                    watch.busy = false;
                     touched |= cycle.touched;
                     picked |= cycle.picked;
                     if let Some(bin) = cycle.placed_bin {
@@ -260,7 +233,7 @@ impl Sorter<'_> {
                 parts_planned: planned,
                 parts_sorted: sorted,
                 bottles_passed: watch.bottles,
-                belt_stops: watch.holds,
+                belt_stops: 0,
                 parts,
                 misidentified: self.misidentified.take(),
                 tracks_opened: self.tracking.as_ref().map_or(0, |t| t.opened()),
@@ -360,11 +333,11 @@ impl Sorter<'_> {
         bin: Option<BinId>,
         tracking: &mut PartTracking,
     ) -> Result<GraspRecord, Failure> {
+        let speed = model.scenario().conveyor.speed_m_s;
         let Meet {
             x_m: meet_x,
             meet_s,
             wait_s,
-            speed_m_s: speed,
             pick,
         } = meet;
         let _ = meet_s;
@@ -427,8 +400,7 @@ impl Sorter<'_> {
             drift_mm: 0.0,
         };
         // The lift, planned for where the belt will have carried the part when it ends.
-        let (lift_x, place) =
-            self.plan_lift_and_place(model, data, item, &pick, meet_x, bin, speed)?;
+        let (lift_x, place) = self.plan_lift_and_place(model, data, item, &pick, meet_x, bin)?;
         let lift_follow = Follow {
             part: item,
             plan_x_m: lift_x,
@@ -443,16 +415,7 @@ impl Sorter<'_> {
             Play::span(Phase::Transport, carry, over).settle(STOP_SETTLE_S),
             Play::span(Phase::Place, &place.lower, lower).settle(STOP_SETTLE_S),
         ];
-        for (k, play) in plays.into_iter().enumerate() {
-            if k == 1 {
-                // The part is off the belt: a held belt runs again, and from here on a part
-                // queued that would pass its standing limit holds it.
-                if watch.held {
-                    data.belt.run_at(model.scenario().conveyor.speed_m_s);
-                    watch.held = false;
-                }
-                watch.busy = true;
-            }
+        for play in plays {
             let played = self.play_watching(model, data, watch, play, Some(&mut held));
             tracking.jaw_drift_mm = held.drift_mm;
             played?;
@@ -487,6 +450,135 @@ impl Sorter<'_> {
             self.play_watching(model, data, watch, play, None)?;
         }
         Ok(grasp_record)
+    }
+
+    /// Where to meet `item`'s part: the place along the belt, how long the arm waits before
+    /// it sets off, and the pick planned for the part there. `None`: it cannot be met.
+    fn plan_intercept(
+        &self,
+        model: &CellModel,
+        data: &CellData,
+        item: &Latched,
+        window: (f64, f64),
+    ) -> Option<Meet> {
+        let speed = model.scenario().conveyor.speed_m_s;
+        let bin = decide(model, &item.percept).1;
+        let planner = &self.planner;
+        let x_latch = item.percept.part_xy[0];
+        let pick_at = |x: f64| {
+            let percept = shifted(&item.percept, x - x_latch);
+            let checker = planner.checker_for(&percept);
+            let pick = planner.plan_pick(&percept, &checker, &data.q).ok()?;
+            let split = pick.approach.part_starts_s().get(1).copied()?;
+            // The arm must still reach where the belt carries the part by the lift's end: the
+            // whole lift (from the grasp pose up), moved by the travel during the descent,
+            // the jaws' closing and the lift.
+            let close_s = planner.open_offset_m(&percept) / JAW_SPEED_M_S + GRIP_BUILD_S;
+            let follow_s = pick.approach.duration_s() - split + close_s + LIFT_ALLOWANCE_S;
+            match bin {
+                Some(bin) => {
+                    let lift_x = x + speed * follow_s;
+                    self.place_at(model, data, item, (&pick, x), lift_x, bin)
+                        .ok()?;
+                }
+                None => {
+                    let mut near = pick.lift_path.first().copied()?;
+                    for q in &pick.lift_path {
+                        near = self.shifted_ik(q, speed * follow_s, &near).ok()?;
+                    }
+                }
+            }
+            Some((split, pick))
+        };
+        let problem = InterceptProblem {
+            part_now_m: item.x_at(data.belt.encoder_counts()),
+            speed_m_s: speed,
+            window_m: window,
+        };
+        let meet = problem.solve(|x| pick_at(x).map(|(t, _)| t))?;
+        let (_, pick) = pick_at(meet.at_m)?;
+        Some(Meet {
+            x_m: meet.at_m,
+            meet_s: meet.meet_s,
+            wait_s: (meet.meet_s - meet.arrival_s).max(0.0),
+            pick,
+        })
+    }
+
+    /// The lift from the grasp, planned for the part where the belt will have carried it when
+    /// the lift ends (found in two rounds: the lift's time depends a little on where it is),
+    /// with the place that follows: the lift's place along the belt, and the place plan.
+    fn plan_lift_and_place(
+        &self,
+        model: &CellModel,
+        data: &CellData,
+        item: &Latched,
+        pick: &PickPlan,
+        meet_x: f64,
+        bin: BinId,
+    ) -> Result<(f64, PlacePlan), Failure> {
+        let speed = model.scenario().conveyor.speed_m_s;
+        let x_now = item.x_at(data.belt.encoder_counts());
+        let mut lift_s = 0.5;
+        let mut planned = None;
+        for _ in 0..3 {
+            let lift_x = x_now + speed * lift_s;
+            let place = self.place_at(model, data, item, (pick, meet_x), lift_x, bin)?;
+            let new_lift_s = place.carry.part_starts_s().get(1).copied().unwrap_or(0.0);
+            let settled = (new_lift_s - lift_s).abs() * speed < 0.000_2;
+            lift_s = new_lift_s;
+            planned = Some((lift_x, place));
+            if settled {
+                break;
+            }
+        }
+        planned.ok_or_else(|| Failure::new(FailureReason::Panic, "no lift planned"))
+    }
+
+    /// The place of `item`'s part into `bin` after a lift from the grasp of `pick` (planned
+    /// for the part at `meet_x`) moved to where the part stands at `lift_x` along the belt.
+    fn place_at(
+        &self,
+        model: &CellModel,
+        data: &CellData,
+        item: &Latched,
+        (pick, meet_x): (&PickPlan, f64),
+        lift_x: f64,
+        bin: BinId,
+    ) -> Result<PlacePlan, Failure> {
+        let planner = &self.planner;
+        let dx = lift_x - meet_x;
+        let mut path = Vec::with_capacity(pick.lift_path.len());
+        let mut near = pick.lift_path.first().copied().unwrap_or(pick.lift_end);
+        for q in &pick.lift_path {
+            near = self.shifted_ik(q, dx, &near)?;
+            path.push(near);
+        }
+        let lifted = PickPlan {
+            approach: pick.approach.clone(),
+            pregrasp: pick.pregrasp,
+            lift_end: path.last().copied().unwrap_or(near),
+            lift_path: path,
+            clearance_m: pick.clearance_m,
+            candidates: pick.candidates,
+        };
+        let percept = shifted(&item.percept, lift_x - item.percept.part_xy[0]);
+        let checker = planner.checker_for(&percept);
+        let payload = Payload {
+            mass_kg: model.catalogue().part(percept.part_type).mass_kg(),
+            grip_force_n: self.grip_recipe_n,
+            pad_friction: model.scenario().gripper.pad_friction,
+        };
+        let bin_body = &data.cell.bins[bin.0];
+        let placed_before = data.bin_fill[bin.0];
+        planner.plan_place(
+            &percept,
+            bin_body,
+            placed_before,
+            &lifted,
+            &payload,
+            &checker,
+        )
     }
 }
 
