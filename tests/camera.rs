@@ -307,6 +307,7 @@ fn thousand_image_dataset_is_deterministic_and_boxes_hold_their_silhouettes() {
             // The object's whole silhouette, unoccluded: an id render of the object alone.
             let alone = Scene {
                 objects: vec![s.scene.objects[truth.object_index].clone()],
+                blur: None,
             };
             let gpu = renderer.upload(&alone);
             let ids = match renderer.render_ids(&gpu, &s.exposure) {

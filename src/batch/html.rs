@@ -417,6 +417,7 @@ mod tests {
                 cycle_time_s: 7.5,
                 grasp: None,
                 track: Some(0),
+                tracking: None,
             }],
             misidentified: Some(Misidentification {
                 truth: "bottle".into(),
@@ -426,6 +427,7 @@ mod tests {
             tracks_opened: 3,
             passed_tracks: vec![1],
             collected: Vec::new(),
+            tracking: false,
         });
         let mut missed = TrialRecord::failed(5, 105, FailureReason::NotDetected, "nothing");
         missed.part = Some(part("axle_b32", 0.1));

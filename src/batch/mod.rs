@@ -22,6 +22,7 @@ mod suite;
 mod summary_table;
 mod sweep;
 mod trial_images;
+mod tracking_summary;
 mod trial_summary;
 
 pub use crate::outcome::{
@@ -53,6 +54,7 @@ pub use resume::{
 };
 pub use suite::{BatchRow, SuiteReport, write_json_report};
 pub use sweep::{SweepAxisReport, SweepPoint, SweepReport};
+pub use tracking_summary::{MeanMax, TrackingSummary};
 pub use trial_images::{
     IMAGES_DIR, THUMBNAIL_WIDTH_PX, TrialImages, annotated_thumbnail, copy_trial_images,
     decision_misjudged, remove_trial_images, trial_image_path, wants_image,

@@ -5,6 +5,7 @@ use std::collections::BTreeMap;
 use serde::{Deserialize, Serialize};
 
 use super::batch_listing::BatchListing;
+use super::tracking_summary::TrackingSummary;
 use super::{Outcome, Perception, Shard, TrialRecord, TrialTiming};
 use crate::outcome::{FaultKind, FaultTally};
 use crate::scenario::UNIDENTIFIED;
@@ -218,6 +219,10 @@ pub struct StreamSummary {
     /// part, or another item for the one at the photo-eye), over all stream trials.
     #[serde(default)]
     pub misidentified_items: u32,
+    /// Streams picked from a moving belt (`conveyor.tracking`): their figures; absent when
+    /// none was.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tracking: Option<TrackingSummary>,
 }
 
 /// The contents of `report.json`, and the listing of trials and parts that `junit.xml` and
@@ -500,6 +505,7 @@ impl BatchReport {
                     *summary.part_failures.entry(reason.to_owned()).or_insert(0) += 1;
                 }
             }
+            summary.tracking = TrackingSummary::of(records);
             summary
         });
 

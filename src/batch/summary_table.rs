@@ -170,6 +170,22 @@ impl BatchReport {
             for (reason, n) in &stream.part_failures {
                 let _ = writeln!(out, "  {reason:<20}{n:>8}");
             }
+            if let Some(t) = &stream.tracking {
+                let _ = writeln!(
+                    out,
+                    "{:<22}{:>8.3}  {} unpicked; latch-to-grasp {:.2} s (max {:.2}), tracking \
+                     error {:.1} mm (max {:.1}), jaw drift max {:.2} mm, joint margin {:.3} rad",
+                    "tracking sorted share",
+                    t.sorted_share,
+                    t.parts_unpicked,
+                    t.latch_to_grasp_s.mean,
+                    t.latch_to_grasp_s.max,
+                    t.tracking_error_mm.mean,
+                    t.tracking_error_mm.max,
+                    t.jaw_drift_mm.max,
+                    t.joint_limit_margin_rad
+                );
+            }
         }
         let ppm = self
             .parts_per_minute

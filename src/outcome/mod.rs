@@ -13,8 +13,8 @@ pub use motion_record::MotionRecord;
 pub use phase::{PHASE_COUNT, Phase, PhaseSeconds};
 pub use trial_record::{
     CollectedRecord, DecisionRecord, FailureReason, GraspRecord, Misidentification, Outcome,
-    PartOutcome, PartRecord, PassedRecord, Perception, StreamPartRecord, StreamRecord, TrialRecord,
-    TrialTiming,
+    PartOutcome, PartRecord, PartTracking, PassedRecord, Perception, StreamPartRecord,
+    StreamRecord, TrialRecord, TrialTiming,
 };
 
 /// Runs one trial of a scenario. Implementations must be deterministic in `(index, seed)`.

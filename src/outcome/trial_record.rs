@@ -265,6 +265,22 @@ pub struct StreamPartRecord {
     /// The track by which the cell knew it at the pick station (absent when it had none).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub track: Option<u32>,
+    /// How the arm met it on the moving belt (conveyor tracking only).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tracking: Option<PartTracking>,
+}
+
+/// A part picked from the moving belt (`conveyor.tracking`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct PartTracking {
+    /// From the photo-eye's latch of the part to the jaws closed on it, s.
+    pub latch_to_grasp_s: f64,
+    /// The TCP's distance across the belt's top from the part's true axis when the jaws began
+    /// to close, mm.
+    pub tracking_error_mm: f64,
+    /// The largest move of the part in the jaws from where they closed on it, through lift,
+    /// transport and place, mm.
+    pub jaw_drift_mm: f64,
 }
 
 /// A stream trial: the parts fed, what became of each, and the belt's stops.
@@ -295,6 +311,13 @@ pub struct StreamRecord {
     /// matched it to (absent without a collector, or when nothing reached it).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub collected: Vec<CollectedRecord>,
+    /// Picked from a belt that never stopped (`conveyor.tracking`).
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub tracking: bool,
+}
+
+fn is_false(flag: &bool) -> bool {
+    !*flag
 }
 
 impl StreamRecord {

@@ -7,6 +7,7 @@ mod cylinder_place;
 #[cfg(test)]
 mod cylinder_grasp_tests;
 mod grasp_search;
+mod intercept;
 mod payload;
 mod pick_planner;
 #[cfg(test)]
@@ -23,6 +24,7 @@ pub use cylinder_grasp::{CylinderPick, GripCylinder, cylinder_obstacle};
 pub use grasp_search::{
     Approach, CLEARANCE_CAP_M, GraspPose, GraspRanking, GraspSearch, ScoredGrasp,
 };
+pub use intercept::{Intercept, InterceptProblem};
 pub use payload::{GRIP_SAFETY_FACTOR, Payload};
 pub use pick_planner::{
     GRASP_TCP_ABOVE_BOTTOM_M, PART_OBSTACLE, PickPlan, PickPlanner, PlacePlan, PlaceSpot, bin_slot,

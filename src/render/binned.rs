@@ -8,6 +8,7 @@
 
 use image::RgbImage;
 
+use super::motion_blur;
 use super::{GpuScene, RenderError, Renderer, Shot};
 use crate::camera::CameraCalibration;
 
@@ -95,7 +96,8 @@ impl Shot {
         let mut exposure = self.exposure.clone();
         exposure.camera = binned_calibration(&self.exposure.camera, bin);
         (exposure.width_px, exposure.height_px) = (w / bin, h / bin);
-        let mut binned = renderer.render(gpu, &exposure)?;
+        let blur = self.scene.blur.as_ref();
+        let mut binned = motion_blur::render(renderer, gpu, &exposure, blur, Renderer::render)?;
         self.sensor.apply_binned(&mut binned, bin);
         Ok(unbin(&binned, bin))
     }

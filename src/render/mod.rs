@@ -26,6 +26,7 @@ pub mod family;
 mod gpu_scene;
 pub mod material;
 pub mod mesh;
+pub mod motion_blur;
 mod pipeline;
 pub mod renderer;
 pub mod scene;
@@ -39,6 +40,7 @@ pub mod window;
 
 pub use binned::reader_bin;
 pub use error::RenderError;
+pub use motion_blur::MotionBlur;
 pub use renderer::{Exposure, GpuScene, Light, Renderer, RendererOptions, StainBlob};
 pub use scene::{ObjectKind, Scene, SceneObject};
 pub use shot::{BoreTruth, CameraRig, ObjectTruth, Shot, ShotError};

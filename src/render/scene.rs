@@ -11,6 +11,7 @@ use rapier3d::prelude::{Collider, ColliderHandle, RigidBodyHandle};
 
 use super::material::Material;
 use super::mesh::{Mesh, ROUND_SEGMENTS};
+use super::motion_blur::MotionBlur;
 use crate::cell::Cell;
 use crate::math::{pose_from_physics, vector_from_physics};
 use crate::scenario::Scenario;
@@ -47,6 +48,8 @@ pub struct SceneObject {
 pub struct Scene {
     /// The objects, in a fixed order (the physics world's collider order).
     pub objects: Vec<SceneObject>,
+    /// The objects' motion over the camera's exposure, when it blurs the frame.
+    pub blur: Option<MotionBlur>,
 }
 
 impl Scene {
@@ -108,7 +111,10 @@ impl Scene {
                 kind: ObjectKind::Scenery,
             });
         }
-        let mut scene = Self { objects };
+        let mut scene = Self {
+            objects,
+            blur: None,
+        };
         // Every part and bottle on the belt, in the registry's order.
         for part in cell.items.parts() {
             if let Some(world_from_part) = cell.body_pose(part.body) {
@@ -130,6 +136,7 @@ impl Scene {
                 kind: ObjectKind::Bottle,
             });
         }
+        scene.blur = MotionBlur::of_cell(&scene, cell, scenario.camera.exposure_ms);
         scene
     }
 

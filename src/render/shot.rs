@@ -218,7 +218,9 @@ impl Shot {
         renderer: &mut Renderer,
         gpu: &GpuScene,
     ) -> Result<image::RgbImage, RenderError> {
-        let mut image = renderer.render_single_sample(gpu, &self.exposure)?;
+        let blur = self.scene.blur.as_ref();
+        let single = Renderer::render_single_sample;
+        let mut image = super::motion_blur::render(renderer, gpu, &self.exposure, blur, single)?;
         self.sensor.apply(&mut image);
         Ok(image)
     }

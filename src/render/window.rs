@@ -4,6 +4,7 @@
 
 use image::RgbImage;
 
+use super::motion_blur;
 use super::{GpuScene, RenderError, Renderer, Shot};
 use crate::camera::CameraCalibration;
 
@@ -96,7 +97,8 @@ impl Shot {
         let mut exposure = self.exposure.clone();
         exposure.camera = window.calibration(&self.exposure.camera);
         (exposure.width_px, exposure.height_px) = window.size_px;
-        let mut image = renderer.render(gpu, &exposure)?;
+        let blur = self.scene.blur.as_ref();
+        let mut image = motion_blur::render(renderer, gpu, &exposure, blur, Renderer::render)?;
         self.sensor
             .apply_window(&mut image, window.origin_px, window.sensor_px);
         Ok(image)

@@ -30,6 +30,14 @@ pub struct CameraSection {
     /// frame at `resolution_px` (binned) for detection and reads the target part's area of
     /// interest at its full pitch for the bore metrology.
     pub roi_scale: u32,
+    /// Exposure time, ms: items the belt carries during it smear along the belt's direction
+    /// (`render::motion_blur`). 0: an instant frame.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub exposure_ms: f64,
+}
+
+fn is_zero(value: &f64) -> bool {
+    *value == 0.0
 }
 
 impl Default for CameraSection {
@@ -43,6 +51,7 @@ impl Default for CameraSection {
             msaa_samples: 4,
             supersample: 1,
             roi_scale: 2,
+            exposure_ms: 0.0,
         }
     }
 }

@@ -237,6 +237,11 @@ pub struct ConveyorSection {
     pub spawn_upstream_m: f64,
     /// Belt friction coefficient.
     pub friction: f64,
+    /// Conveyor tracking: the belt never stops; the arm meets each part on the moving belt and
+    /// follows it through descend, grasp and lift (`false`: stop-and-go, the paper's way).
+    /// Streams only.
+    #[serde(skip_serializing_if = "is_false")]
+    pub tracking: bool,
 }
 
 impl ConveyorSection {
@@ -262,6 +267,7 @@ impl Default for ConveyorSection {
             photo_eye_x_m: 0.05,
             spawn_upstream_m: 0.3,
             friction: 0.8,
+            tracking: false,
         }
     }
 }

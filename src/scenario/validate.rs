@@ -314,6 +314,18 @@ impl Scenario {
         if belt.belt_center_m[2] <= 0.0 {
             return Err(c.fail("conveyor.belt_center_m[2]", "belt must be above the floor"));
         }
+        if belt.tracking && !self.is_stream() {
+            return Err(c.fail(
+                "conveyor.tracking",
+                "picks from a moving stream: needs parts_per_trial > 1",
+            ));
+        }
+        if belt.tracking && !self.faults.is_empty() {
+            return Err(c.fail(
+                "conveyor.tracking",
+                "faults are injected and recovered in stop-and-go only; remove [faults]",
+            ));
+        }
         Ok(())
     }
 

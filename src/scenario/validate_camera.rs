@@ -9,6 +9,8 @@ use super::validate::{Checker, MAX_CELL_REACH_M, ScenarioError};
 const EDGE_SLACK_DEG: f64 = 0.02;
 /// Distance past the envelope's edges still accepted, m.
 const EDGE_SLACK_M: f64 = 1e-4;
+/// Longest exposure a scenario may give, ms: beyond it a belt frame is a smear.
+pub const MAX_EXPOSURE_MS: f64 = 50.0;
 
 impl Scenario {
     /// Checks `[camera]`, `[lights]` and `[sensor]`.
@@ -50,6 +52,12 @@ impl Scenario {
         if !(1..=4).contains(&camera.roi_scale) {
             return Err(c.fail("camera.roi_scale", "must lie in [1, 4]"));
         }
+        c.in_range(
+            "camera.exposure_ms",
+            camera.exposure_ms,
+            0.0,
+            MAX_EXPOSURE_MS,
+        )?;
         if let Some(p) = camera.position_m {
             c.point_within("camera.position_m", &p, MAX_CELL_REACH_M)?;
         }

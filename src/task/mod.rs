@@ -3,6 +3,7 @@
 //! camera percept adapters; and the judging of outcomes against the truth.
 
 mod at_eye;
+mod belt_follow;
 mod cell_data;
 mod fault_handling;
 mod feeder;
@@ -20,6 +21,7 @@ mod runner;
 mod sorter;
 mod stream;
 mod tracking;
+mod tracking_stream;
 
 pub use crate::outcome::Phase;
 pub use crate::station::{CameraPerception, StationItem, TargetRule};

@@ -308,7 +308,7 @@ fn payload(model: &CellModel, percept: &Percept, grip_force_n: f64) -> Payload {
 
 /// The sorting rule: accept only a part whose bore was measured within tolerance and whose
 /// measurement agrees with the detected type. Returns the decision and its bin.
-fn decide(model: &CellModel, percept: &Percept) -> (DecisionRecord, Option<BinId>) {
+pub(super) fn decide(model: &CellModel, percept: &Percept) -> (DecisionRecord, Option<BinId>) {
     let catalogue = model.catalogue();
     let accept = percept.inconsistency.is_none()
         && percept.unidentified.is_none()

@@ -121,7 +121,9 @@ impl TrialRunner for CellTrialRunner {
                 data.attach(model, observer.take(), index);
                 let planner = self.planner.get_or_init(|| planner_for(model, &data));
                 let sorter = Sorter::new(model, planner.clone(), self.camera.as_deref());
-                let record = if model.scenario().is_stream() {
+                let record = if model.scenario().conveyor.tracking {
+                    sorter.run_tracking_stream(model, &mut data, index)
+                } else if model.scenario().is_stream() {
                     sorter.run_stream(model, &mut data, index)
                 } else {
                     sorter.run_single(model, &mut data, index)

@@ -229,6 +229,7 @@ impl Sorter<'_> {
                 tracks_opened: self.tracking.as_ref().map_or(0, |t| t.opened()),
                 passed_tracks: passed_tracks.iter().map(|t| t.0).collect(),
                 collected,
+                tracking: false,
             }),
             grasp: None,
             faults,
@@ -261,5 +262,6 @@ fn stream_part(index: u32, cycle: Cycle) -> StreamPartRecord {
         cycle_time_s: cycle.cycle_time_s,
         grasp: cycle.grasp,
         track: None,
+        tracking: None,
     }
 }
