@@ -4,10 +4,9 @@
 
 use crate::cell::CellModel;
 use crate::outcome::{Failure, Outcome, Phase, TrialRecord};
-use crate::scenario::PartTypeId;
 use crate::sim::Tag;
 use crate::task::CellData;
-use crate::task::judge::{self, CycleEvidence};
+use crate::task::judge;
 
 /// A part slower than this counts as at rest, m/s.
 const REST_SPEED_M_S: f64 = 0.02;
@@ -114,14 +113,8 @@ impl Watch {
         let (scenario, catalogue) = (model.scenario(), model.catalogue());
         let instance = &data.cell.items.parts()[0].instance;
         let part = judge::part_record(scenario, catalogue, instance);
-        let placed_bin = data.bin_holding(0);
-        let evidence = CycleEvidence {
-            part_type: PartTypeId(instance.type_index),
-            placed_bin,
-            bottle_lifted: data.bottle_lifted(),
-            touch_phase: data.touch_phase,
-            bottle_displacement_m: data.bottle_displacement_m(),
-        };
+        let evidence = data.cycle_evidence(0);
+        let placed_bin = evidence.placed_bin;
         let controller = match ending {
             Ending::Failed(failure) => Err(failure),
             Ending::Rested | Ending::GaveUp => Ok(()),

@@ -10,13 +10,14 @@ use rapier3d::prelude::*;
 
 use super::fault_handling::FaultLog;
 use super::feeder::Feeder;
+use super::judge::CycleEvidence;
 use super::observer::{CellView, ObserverSlot, PerceptionFrame, TrialObserver};
 use crate::cell::{Cell, CellError, CellModel};
 use crate::control::{BeltDrive, FaultPlan, GripperDrive};
 use crate::kinematics::{ArmModel, JointVector};
 use crate::outcome::{Failure, FailureReason, MotionRecord, Phase, TrialTiming, fail};
 use crate::rng::SimRng;
-use crate::scenario::BinId;
+use crate::scenario::{BinId, PartTypeId};
 use crate::sim::Tag;
 
 /// A robot collider this close to a bottle counts as touching it, m.
@@ -289,6 +290,18 @@ impl CellData {
                 Some((now.translation.vector - rest.translation.vector).norm())
             })
             .fold(0.0, f64::max)
+    }
+
+    /// The judge's evidence on part `part` as the cell stands now: its type, the bin it rests
+    /// in, and what happened to the bottles.
+    pub(crate) fn cycle_evidence(&self, part: usize) -> CycleEvidence {
+        CycleEvidence {
+            part_type: PartTypeId(self.cell.items.parts()[part].instance.type_index),
+            placed_bin: self.bin_holding(part),
+            bottle_lifted: self.bottle_lifted(),
+            touch_phase: self.touch_phase,
+            bottle_displacement_m: self.bottle_displacement_m(),
+        }
     }
 
     /// Whether a bottle has been lifted since the belt last stopped.

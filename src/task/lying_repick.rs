@@ -9,7 +9,7 @@ use std::time::Instant;
 use nalgebra::{Point3, Vector3};
 
 use super::cell_data::CellData;
-use super::judge::{self, CycleEvidence};
+use super::judge;
 use super::motion_stages::Held;
 use super::pick_cycle::{Cycle, OPEN_FORCE_N, STOP_SETTLE_S, grasp, play_part};
 use super::sorter::Sorter;
@@ -62,14 +62,8 @@ impl Sorter<'_> {
                 "no bin was decided for the part before it fell",
             ),
         };
-        let placed_bin_id = data.bin_holding(self.current);
-        let evidence = CycleEvidence {
-            part_type: PartTypeId(data.cell.items.parts()[self.current].instance.type_index),
-            placed_bin: placed_bin_id,
-            bottle_lifted: data.bottle_lifted(),
-            touch_phase: data.touch_phase,
-            bottle_displacement_m: data.bottle_displacement_m(),
-        };
+        let evidence = data.cycle_evidence(self.current);
+        let placed_bin_id = evidence.placed_bin;
         let failure = judge::judge_cycle(scenario, catalogue, &before.part, result, &evidence);
         Cycle {
             touched: before.touched || evidence.bottle_disturbed(scenario),

@@ -4,7 +4,7 @@
 use std::time::Instant;
 
 use super::cell_data::CellData;
-use super::judge::{self, CycleEvidence};
+use super::judge;
 use super::motion_stages::Held;
 use super::sorter::Sorter;
 use crate::cell::CellModel;
@@ -13,7 +13,7 @@ use crate::outcome::{
     DecisionRecord, Failure, FailureReason, GraspRecord, PartRecord, PassedRecord, Phase, fail,
 };
 use crate::planning::{JointTrajectory, Payload, PickPlan, PlacePlan};
-use crate::scenario::{BinId, PartTypeId, UNIDENTIFIED};
+use crate::scenario::{BinId, UNIDENTIFIED};
 use crate::sim::JAW_SPEED_M_S;
 use crate::station::{Percept, Sighting};
 
@@ -93,14 +93,8 @@ impl Sorter<'_> {
         let result = self.run_cycle(model, data, seen, &mut decision, &mut grasp);
         let (result, let_through) = self.let_through_if_refused(model, data, result);
         let (passed, moved_before_m) = let_through.unzip();
-        let placed_bin_id = data.bin_holding(self.current);
-        let evidence = CycleEvidence {
-            part_type: PartTypeId(data.cell.items.parts()[self.current].instance.type_index),
-            placed_bin: placed_bin_id,
-            bottle_lifted: data.bottle_lifted(),
-            touch_phase: data.touch_phase,
-            bottle_displacement_m: data.bottle_displacement_m(),
-        };
+        let evidence = data.cycle_evidence(self.current);
+        let placed_bin_id = evidence.placed_bin;
         let (failure, touched) = match &passed {
             // The belt carried the bottles on with the part: only the robot's touch counts.
             Some(_) => (
