@@ -105,6 +105,29 @@ fn errors_name_the_file_that_set_the_key() {
     let error = Scenario::load(&unknown).expect_err("an unknown key");
     assert!(error.file.ends_with("unknown.toml"), "{error}");
     assert!(error.reason.contains("speeed_m_s"), "{error}");
+    assert_eq!(error.key, "conveyor.speeed_m_s");
+
+    // A value of the wrong type is named by its whole path, in an extending file, in a plain
+    // one (with its line), and inside an array of tables.
+    let typed = write(
+        &dir,
+        "typed.toml",
+        "extends = \"paper.toml\"\n[conveyor]\ntracking = \"yes\"\n",
+    );
+    let error = Scenario::load(&typed).expect_err("a string for a boolean");
+    assert!(error.file.ends_with("typed.toml"), "{error}");
+    assert_eq!(error.key, "conveyor.tracking");
+    assert!(error.reason.contains("invalid type"), "{error}");
+    let plain = paper_text().replace("speed_m_s = 0.25", "speed_m_s = \"fast\"");
+    let error = Scenario::from_toml(&plain, Path::new("plain.toml")).expect_err("a string");
+    assert_eq!(error.key, "conveyor.speed_m_s");
+    assert!(error.reason.contains("(line "), "{error}");
+    let unknown_plain = paper_text().replace("[conveyor]", "[conveyor]\nspeeed_m_s = 1.0");
+    let error = Scenario::from_toml(&unknown_plain, Path::new("plain.toml")).expect_err("unknown");
+    assert_eq!(error.key, "conveyor.speeed_m_s");
+    let in_array = paper_text().replacen("accepts = [", "accepts = 3\nx = [", 1);
+    let error = Scenario::from_toml(&in_array, Path::new("plain.toml")).expect_err("not a list");
+    assert!(error.key.starts_with("bins[0]."), "{error}");
 
     let missing = write(&dir, "missing.toml", "extends = \"nowhere.toml\"\n");
     let error = Scenario::load(&missing).expect_err("no such base");

@@ -508,7 +508,10 @@ impl Scenario {
         let scenario: Scenario = if document.has_bases() {
             document.deserialize(document.table.clone())?
         } else {
-            toml::from_str(text).map_err(|e| ScenarioError::from_toml(path, text, &e))?
+            let parsed = toml::de::Deserializer::parse(text)
+                .map_err(|e| ScenarioError::from_toml(path, text, &e))?;
+            serde_path_to_error::deserialize(parsed)
+                .map_err(|e| ScenarioError::from_path_error(path, Some(text), &e))?
         };
         scenario.validate(path).map_err(|e| document.blame(e))?;
         Ok(scenario)

@@ -296,24 +296,15 @@ impl ScenarioDocument {
     /// The scenario in `table` (this document, edited or not), parsed but not yet validated; a
     /// parse error names the file that holds the key it names.
     pub(super) fn deserialize(&self, table: toml::Table) -> Result<Scenario, ScenarioError> {
-        toml::Value::Table(table)
-            .try_into()
-            .map_err(|e: toml::de::Error| {
-                let reason = e.message().to_owned();
-                let named = reason.split('`').nth(1).filter(|_| reason.contains('`'));
-                match named.and_then(|key| Some((key, self.file_holding(key)?))) {
-                    Some((key, file)) => ScenarioError {
-                        file: file.to_path_buf(),
-                        key: key.to_owned(),
-                        reason,
-                    },
-                    None => ScenarioError {
-                        file: self.top_file().to_path_buf(),
-                        key: String::new(),
-                        reason,
-                    },
-                }
-            })
+        serde_path_to_error::deserialize(toml::Value::Table(table)).map_err(|e| {
+            // The key's own name (its path's last part, without an index) finds the file,
+            // among the extending one and its bases, that holds it.
+            let key = super::validate::dotted_key(&e);
+            let leaf = key.rsplit('.').next().unwrap_or_default();
+            let leaf = leaf.split('[').next().unwrap_or_default();
+            let file = self.file_holding(leaf).unwrap_or_else(|| self.top_file());
+            ScenarioError::from_path_error(file, None, &e)
+        })
     }
 }
 
