@@ -9,6 +9,7 @@ mod faults;
 mod overrides;
 mod robot_arm;
 mod separability;
+mod scenario_error;
 mod validate;
 mod validate_camera;
 
@@ -29,8 +30,8 @@ pub use faults::{
 pub use overrides::{
     Override, OverrideSyntaxError, SweepAxis, parse_value, split_values, sweep_grid,
 };
+pub use scenario_error::ScenarioError;
 pub use separability::{Confusion, SizedType, confusable_types, confusion, first_confusion};
-pub use validate::ScenarioError;
 
 use extends::ScenarioDocument;
 

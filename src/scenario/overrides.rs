@@ -299,7 +299,7 @@ impl ScenarioDocument {
         serde_path_to_error::deserialize(toml::Value::Table(table)).map_err(|e| {
             // The key's own name (its path's last part, without an index) finds the file,
             // among the extending one and its bases, that holds it.
-            let key = super::validate::dotted_key(&e);
+            let key = super::scenario_error::dotted_key(&e);
             let leaf = key.rsplit('.').next().unwrap_or_default();
             let leaf = leaf.split('[').next().unwrap_or_default();
             let file = self.file_holding(leaf).unwrap_or_else(|| self.top_file());

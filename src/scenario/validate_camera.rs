@@ -2,8 +2,9 @@
 //! reason; a camera outside [`CAMERA_ENVELOPE`] is refused with the envelope in the message.
 
 use super::Scenario;
+use super::ScenarioError;
 use super::camera_sections::{CAMERA_ENVELOPE, CameraSection};
-use super::validate::{Checker, MAX_CELL_REACH_M, ScenarioError};
+use super::validate::{Checker, MAX_CELL_REACH_M};
 
 /// Tilt past the envelope's edge still accepted, degrees (rounding of given coordinates).
 const EDGE_SLACK_DEG: f64 = 0.02;
