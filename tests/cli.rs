@@ -95,3 +95,44 @@ fn a_success_rate_outside_zero_to_one_is_bad_input() {
         assert!(stderr.contains("--min-success"), "{command}: {stderr}");
     }
 }
+
+#[test]
+fn bench_reports_each_stage_and_the_cost_of_a_simulated_second() {
+    let out = common::absent_dir("cli", "bench");
+    let (code, stdout, stderr) = twincell(&[
+        "bench",
+        "scenarios/smoke.toml",
+        "--perception",
+        "oracle",
+        "--trials",
+        "2",
+        "--jobs",
+        "1",
+        "--out",
+        common::path_str(&out),
+        "--json",
+    ]);
+    assert_eq!(code, 0, "{stderr}");
+    let bench: Value = serde_json::from_str(&stdout).expect("bench JSON");
+    assert_eq!(bench["trials"], 2);
+    let stages = bench["stages"].as_array().expect("stages");
+    let names: Vec<&str> = stages.iter().filter_map(|s| s["stage"].as_str()).collect();
+    assert_eq!(
+        names,
+        [
+            "physics",
+            "render",
+            "detect",
+            "metrology",
+            "planning",
+            "other"
+        ]
+    );
+    let share: f64 = stages.iter().filter_map(|s| s["share"].as_f64()).sum();
+    assert!((share - 1.0).abs() < 1e-6, "shares sum to {share}");
+    let sim_s = bench["sim_time_s"].as_f64().expect("sim_time_s");
+    let total_s = bench["trial_total_s"].as_f64().expect("trial_total_s");
+    let per_sim_s = bench["wall_per_sim_s"].as_f64().expect("wall_per_sim_s");
+    assert!(sim_s > 1.0 && total_s > 0.0, "{sim_s} {total_s}");
+    assert!((per_sim_s - total_s / sim_s).abs() < 1e-9, "{per_sim_s}");
+}

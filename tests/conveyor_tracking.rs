@@ -50,7 +50,7 @@ fn stream(record: &TrialRecord) -> &StreamRecord {
 }
 
 /// Every part picked was held within the drift bound and met within the tracking bound, no
-/// joint passed a limit, the belt never stopped, and nothing failed.
+/// joint passed a limit, every hold of the belt is recorded with its part, and nothing failed.
 fn check_tracked(record: &TrialRecord) {
     println!(
         "trial {}: {:?} {:?} margin {:.3} rad",
@@ -58,7 +58,15 @@ fn check_tracked(record: &TrialRecord) {
     );
     let s = stream(record);
     assert!(s.tracking, "not a tracking stream");
-    assert_eq!(s.belt_stops, 0, "the belt stopped");
+    let recorded: u32 = s
+        .parts
+        .iter()
+        .filter_map(|p| p.tracking.map(|t| t.belt_holds))
+        .sum();
+    assert_eq!(
+        recorded, s.belt_stops,
+        "a hold of the belt not recorded with its part"
+    );
     assert_ne!(record.outcome, Outcome::Failure, "{:?}", record.detail);
     assert!(
         record.motion.joint_limit_margin_rad >= 0.0,
@@ -79,7 +87,13 @@ fn check_tracked(record: &TrialRecord) {
                     Some(part.part.correct_bin.as_str())
                 );
             }
-            Outcome::Passed => assert!(part.tracking.is_none() && part.placed_bin.is_none()),
+            Outcome::Passed => {
+                assert!(part.placed_bin.is_none());
+                // Passed unpicked: at most the record of a hold for it.
+                if let Some(t) = &part.tracking {
+                    assert!(t.belt_holds > 0 && t.latch_to_grasp_s == 0.0, "{t:?}");
+                }
+            }
             Outcome::Failure => panic!("part {} failed: {:?}", part.index, part.detail),
         }
     }
@@ -126,22 +140,36 @@ fn a_faster_belt_is_followed_too() {
 }
 
 #[test]
-fn parts_the_arm_cannot_meet_ride_on_without_failing_the_stream() {
-    // 0.3 m apart at 0.25 m/s: an item every 1.2 s, far more than one arm can pick.
+fn a_stream_denser_than_the_arm_s_cycle_holds_the_belt_and_is_sorted() {
+    // 0.3 m apart at 0.25 m/s: an item every 1.2 s while a pick takes the arm 6-7 s. Without
+    // the hold a quarter of the parts were sorted; with it the belt stops for each part that
+    // would otherwise leave the window while the arm is away, and the arm picks it standing.
     let (scenario, path) = tracked(6, 1, 0.3, 0.25);
-    for record in run(&scenario, &path, Perception::Oracle, 1) {
-        check_tracked(&record);
-        let s = stream(&record);
-        let passed = s
+    let records = run(&scenario, &path, Perception::Oracle, 2);
+    let (mut sorted, mut fed) = (0, 0);
+    for record in &records {
+        check_tracked(record);
+        let s = stream(record);
+        assert!(
+            s.belt_stops >= 1,
+            "the belt was never held: {:?}",
+            record.detail
+        );
+        let held_and_sorted = s
             .parts
             .iter()
-            .filter(|p| p.outcome == Outcome::Passed)
-            .count();
-        assert!(s.parts_sorted >= 1, "nothing sorted");
-        assert!(passed >= 1, "an arm kept up with an item every 1.2 s");
-        assert_eq!(s.parts_sorted as usize + passed, s.parts.len());
-        assert_eq!(record.outcome, Outcome::Passed);
+            .any(|p| p.outcome == Outcome::Success && p.tracking.is_some_and(|t| t.belt_holds > 0));
+        assert!(held_and_sorted, "no part held for was sorted");
+        for part in &s.parts {
+            if let Some(t) = part.tracking.filter(|t| t.belt_holds > 0) {
+                assert!(t.belt_hold_s > 0.0, "part {}: {t:?}", part.index);
+            }
+        }
+        sorted += s.parts_sorted;
+        fed += s.parts_planned;
     }
+    // Measured: 12/12 (and 80/80 on stream.toml's 10 camera streams, seeds 731 and 2602).
+    assert!(sorted * 20 >= fed * 19, "{sorted}/{fed} sorted");
 }
 
 #[test]

@@ -35,8 +35,15 @@ pub struct TrackingSummary {
     pub sorted_share: f64,
     /// Parts that rode on unpicked: the arm could not meet them in the pick window.
     pub parts_unpicked: u32,
-    /// Parts the arm grasped on the moving belt.
+    /// Parts the arm grasped from the belt (moving, or standing on a held belt).
     pub parts_grasped: u32,
+    /// Times the belt was held stopped for a part the busy arm could not otherwise have
+    /// picked before it left the pick window.
+    #[serde(default)]
+    pub belt_holds: u32,
+    /// Parts the belt was held for.
+    #[serde(default)]
+    pub parts_held: u32,
     /// From the photo-eye's latch to the jaws closed, s.
     pub latch_to_grasp_s: MeanMax,
     /// The TCP's distance from the part's axis as the jaws began to close, mm.
@@ -59,6 +66,7 @@ impl TrackingSummary {
             return None;
         }
         let (mut planned, mut sorted, mut unpicked) = (0u32, 0u32, 0u32);
+        let (mut holds, mut held) = (0u32, 0u32);
         let (mut latch, mut error, mut drift) = (Vec::new(), Vec::new(), Vec::new());
         let mut margin = f64::INFINITY;
         for record in &tracked {
@@ -72,6 +80,14 @@ impl TrackingSummary {
                     unpicked += 1;
                 }
                 if let Some(t) = &part.tracking {
+                    holds += t.belt_holds;
+                    held += u32::from(t.belt_holds > 0);
+                }
+                if let Some(t) = part
+                    .tracking
+                    .as_ref()
+                    .filter(|_| part.outcome != Outcome::Passed)
+                {
                     latch.push(t.latch_to_grasp_s);
                     error.push(t.tracking_error_mm);
                     drift.push(t.jaw_drift_mm);
@@ -87,6 +103,8 @@ impl TrackingSummary {
             },
             parts_unpicked: unpicked,
             parts_grasped: u32::try_from(latch.len()).unwrap_or(u32::MAX),
+            belt_holds: holds,
+            parts_held: held,
             latch_to_grasp_s: MeanMax::of(&latch),
             tracking_error_mm: MeanMax::of(&error),
             jaw_drift_mm: MeanMax::of(&drift),
@@ -152,15 +170,29 @@ mod tests {
                 latch_to_grasp_s: latch,
                 tracking_error_mm: error,
                 jaw_drift_mm: drift,
+                ..PartTracking::default()
             })
         };
+        // Held for and picked standing; held for and then not pickable where it stood.
+        let held = Some(PartTracking {
+            latch_to_grasp_s: 2.0,
+            tracking_error_mm: 1.5,
+            jaw_drift_mm: 0.4,
+            belt_holds: 2,
+            belt_hold_s: 3.0,
+        });
+        let held_passed = Some(PartTracking {
+            belt_holds: 1,
+            belt_hold_s: 1.0,
+            ..PartTracking::default()
+        });
         let tracked = stream(
             true,
             vec![
                 part(0, Outcome::Success, met(1.0, 0.5, 0.2)),
                 part(1, Outcome::Passed, None),
-                part(2, Outcome::Success, met(2.0, 1.5, 0.4)),
-                part(3, Outcome::Passed, None),
+                part(2, Outcome::Success, held),
+                part(3, Outcome::Passed, held_passed),
             ],
             0.3,
         );
@@ -175,6 +207,7 @@ mod tests {
         assert_eq!(summary.sorted_share, 0.5);
         assert_eq!(summary.parts_unpicked, 2);
         assert_eq!(summary.parts_grasped, 2);
+        assert_eq!((summary.belt_holds, summary.parts_held), (3, 2));
         assert_eq!(
             summary.latch_to_grasp_s,
             MeanMax {

@@ -66,6 +66,9 @@ struct BenchReport {
     sim_time_s: f64,
     /// Summed trial wall time, s (more than `wall_s` with several jobs).
     trial_total_s: f64,
+    /// Summed trial wall time per simulated second: what a simulated second costs on one core,
+    /// comparable between scenarios of different lengths (a tracked stream and a stopping one).
+    wall_per_sim_s: f64,
     stages: Vec<StageCost>,
     /// Simulated seconds per phase of the cell's cycle, mean per trial.
     phases: Vec<PhaseCost>,
@@ -128,6 +131,11 @@ pub fn run(args: &BenchArgs) -> Result<ExitCode> {
         wall_s: report.timing.batch_wall_s,
         sim_time_s,
         trial_total_s,
+        wall_per_sim_s: if sim_time_s > 0.0 {
+            trial_total_s / sim_time_s
+        } else {
+            0.0
+        },
         stages: costs,
         phases,
         motion,
@@ -136,14 +144,16 @@ pub fn run(args: &BenchArgs) -> Result<ExitCode> {
         println!("{}", serde_json::to_string_pretty(&bench)?);
     } else {
         println!(
-            "{} ({}): {}/{} trials, wall {:.1} s with {} jobs, {:.0} s simulated",
+            "{} ({}): {}/{} trials, wall {:.1} s with {} jobs, {:.0} s simulated, \
+             {:.3} s of trial wall a simulated second",
             bench.scenario,
             bench.perception,
             bench.successes,
             bench.trials,
             bench.wall_s.unwrap_or(f64::NAN),
             bench.jobs.map_or_else(|| "?".into(), |j| j.to_string()),
-            bench.sim_time_s
+            bench.sim_time_s,
+            bench.wall_per_sim_s
         );
         println!(
             "{:<12}{:>10}{:>12}{:>8}",

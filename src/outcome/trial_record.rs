@@ -281,6 +281,13 @@ pub struct PartTracking {
     /// The largest move of the part in the jaws from where they closed on it, through lift,
     /// transport and place, mm.
     pub jaw_drift_mm: f64,
+    /// Times the belt was held stopped for this part: the busy arm could not have met it
+    /// before it left the pick window.
+    #[serde(default)]
+    pub belt_holds: u32,
+    /// How long the belt stood held (braking included) for this part, s.
+    #[serde(default)]
+    pub belt_hold_s: f64,
 }
 
 /// A stream trial: the parts fed, what became of each, and the belt's stops.
@@ -292,7 +299,7 @@ pub struct StreamRecord {
     pub parts_sorted: u32,
     /// Bottles that reached the photo-eye and were let through.
     pub bottles_passed: u32,
-    /// Times the belt stopped at the photo-eye.
+    /// Times the belt stopped at the photo-eye (a tracking stream: times it was held for a part).
     pub belt_stops: u32,
     /// Every part that reached the pick station, in order (a stream halts at its first fault,
     /// as a cell stops on a fault, so later parts are not listed).

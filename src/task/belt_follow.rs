@@ -10,6 +10,7 @@ use std::collections::VecDeque;
 use nalgebra::{Isometry3, Translation3, Vector3};
 
 use super::at_eye::AtEye;
+use super::belt_hold::{BeltHold, HOLD_BACKOFF_M};
 use super::cell_data::CellData;
 use super::sorter::Sorter;
 use crate::cell::CellModel;
@@ -31,6 +32,11 @@ pub(super) struct Latched {
     pub(super) percept: Percept,
     /// Its track.
     pub(super) track: Option<TrackId>,
+    /// Its standing limit: the last place along the belt at which the arm can pick it from a
+    /// stopped belt (`None`: nowhere, or no longer; the belt is never held for it).
+    pub(super) limit_x: Option<f64>,
+    /// How far short of its limit a hold may stand it, m.
+    pub(super) backoff_m: f64,
 }
 
 impl Latched {
@@ -55,6 +61,12 @@ pub(super) struct EyeWatch {
     pub(super) bottles: u32,
     /// Items latched that perception could not make out (they ride on), with why.
     pub(super) unseen: Vec<String>,
+    /// The pick window along the belt, m.
+    pub(super) window: (f64, f64),
+    /// The belt's holds.
+    pub(super) belt: BeltHold,
+    /// Whether the arm waits over a bin (out of it) rather than at home.
+    pub(super) parked: bool,
 }
 
 /// The arm moved with the belt: the plan was made for the part at `plan_x_m` along the belt.
@@ -94,9 +106,9 @@ impl<'a> Play<'a> {
         self
     }
 
-    /// Moved with the belt by `follow`.
-    pub(super) fn follow(mut self, follow: Follow<'a>) -> Self {
-        self.follow = Some(follow);
+    /// Moved with the belt by `follow`, when given.
+    pub(super) fn follow(mut self, follow: Option<Follow<'a>>) -> Self {
+        self.follow = follow;
         self
     }
 }
@@ -122,6 +134,8 @@ impl Sorter<'_> {
             self.latch(model, data, watch)?;
         }
         watch.eye_was = blocked;
+        let parts: Vec<&Latched> = watch.parts.iter().collect();
+        watch.belt.watch(data, &parts);
         Ok(())
     }
 
@@ -150,13 +164,19 @@ impl Sorter<'_> {
             }
             Ok(AtEye::Part(seen)) => {
                 match self.perceive(model, data, seen.map(|s| *s)) {
-                    Ok(percept) => watch.parts.push_back(Latched {
-                        count,
-                        time_s,
-                        part: at_beam,
-                        percept,
-                        track,
-                    }),
+                    Ok(percept) => {
+                        let mut item = Latched {
+                            count,
+                            time_s,
+                            part: at_beam,
+                            percept,
+                            track,
+                            limit_x: None,
+                            backoff_m: HOLD_BACKOFF_M,
+                        };
+                        item.limit_x = self.standing_limit(model, data, &item, watch.window);
+                        watch.parts.push_back(item);
+                    }
                     Err(f) => watch.unseen.push(f.detail),
                 }
                 Ok(())
@@ -274,22 +294,34 @@ impl Sorter<'_> {
         offset_m: f64,
         near: &JointVector,
     ) -> Result<JointVector, Failure> {
+        self.moved_ik(q_plan, &Vector3::new(offset_m, 0.0, 0.0), near)
+            .ok_or_else(|| {
+                Failure::new(
+                    FailureReason::Unreachable,
+                    format!(
+                        "the belt carried the tool {:.0} mm past where the arm reaches",
+                        offset_m * 1e3
+                    ),
+                )
+            })
+    }
+
+    /// The joints that put the tool where `q_plan` puts it, moved by `offset_m` (world),
+    /// nearest `near`; `None` where the arm cannot reach there.
+    pub(super) fn moved_ik(
+        &self,
+        q_plan: &JointVector,
+        offset_m: &Vector3<f64>,
+        near: &JointVector,
+    ) -> Option<JointVector> {
         let planner = &self.planner;
         let pose = tcp_pose(&planner.model, q_plan);
-        let shift = planner.world_from_base.inverse().rotation * Vector3::new(offset_m, 0.0, 0.0);
-        let shifted = Isometry3::from_parts(
+        let shift = planner.world_from_base.inverse().rotation * offset_m;
+        let moved = Isometry3::from_parts(
             Translation3::from(pose.translation.vector + shift),
             pose.rotation,
         );
-        planner.ik.solve(&shifted).nearest(near).ok_or_else(|| {
-            Failure::new(
-                FailureReason::Unreachable,
-                format!(
-                    "the belt carried the tool {:.0} mm past where the arm reaches",
-                    offset_m * 1e3
-                ),
-            )
-        })
+        planner.ik.solve(&moved).nearest(near)
     }
 
     /// Closes `track` as picked.

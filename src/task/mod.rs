@@ -4,6 +4,7 @@
 
 mod at_eye;
 mod belt_follow;
+mod belt_hold;
 mod cell_data;
 mod fault_handling;
 mod feeder;
@@ -21,6 +22,7 @@ mod runner;
 mod sorter;
 mod stream;
 mod tracking;
+mod tracking_plan;
 mod tracking_stream;
 
 pub use crate::outcome::Phase;

@@ -201,41 +201,28 @@ impl Sorter<'_> {
             ),
             (None, None) => (None, None),
         };
-        let faults = data.take_fault_records(failure.is_none());
-        let sim_time_s = data.cell.world.time_s();
-        TrialRecord {
-            trial: index,
-            seed: data.seed,
+        let end = StreamEnd {
             outcome: Outcome::from_failed(failure.is_some()),
             failure,
             detail: detail.map(|d| format!("{parts_sorted}/{planned} parts sorted; {d}")),
-            part: None,
-            decision: None,
-            placed_bin: None,
-            distractor_touched: touched,
-            distractor_picked: picked,
-            distractor_displacement_mm: displacement_m * 1e3,
-            cycle_time_s: first_stop_s.map_or(0.0, |t| sim_time_s - t),
-            sim_time_s,
-            motion: data.motion,
-            timing: data.timing.clone(),
-            stream: Some(StreamRecord {
-                parts_planned: planned,
-                parts_sorted,
-                bottles_passed,
-                belt_stops,
-                parts,
-                misidentified: self.misidentified.take(),
-                tracks_opened: self.tracking.as_ref().map_or(0, |t| t.opened()),
-                passed_tracks: passed_tracks.iter().map(|t| t.0).collect(),
-                collected,
-                tracking: false,
-            }),
-            grasp: None,
-            faults,
-            removals: 0,
-            passed: None,
-        }
+            touched,
+            picked,
+            displacement_mm: displacement_m * 1e3,
+            since_s: first_stop_s,
+        };
+        let stream = StreamRecord {
+            parts_planned: planned,
+            parts_sorted,
+            bottles_passed,
+            belt_stops,
+            parts,
+            misidentified: self.misidentified.take(),
+            tracks_opened: self.tracking.as_ref().map_or(0, |t| t.opened()),
+            passed_tracks: passed_tracks.iter().map(|t| t.0).collect(),
+            collected,
+            tracking: false,
+        };
+        stream_trial_record(data, index, end, stream)
     }
 }
 
@@ -263,5 +250,53 @@ fn stream_part(index: u32, cycle: Cycle) -> StreamPartRecord {
         grasp: cycle.grasp,
         track: None,
         tracking: None,
+    }
+}
+
+/// How a stream trial ended, as either stream runner (stop-and-go, tracked) judged it.
+pub(super) struct StreamEnd {
+    pub(super) outcome: Outcome,
+    pub(super) failure: Option<FailureReason>,
+    pub(super) detail: Option<String>,
+    /// Whether the robot touched, or picked, a bottle.
+    pub(super) touched: bool,
+    pub(super) picked: bool,
+    /// How far the bottles were moved, mm.
+    pub(super) displacement_mm: f64,
+    /// When the stream's first item stopped or was latched, simulated s (`None`: none was).
+    pub(super) since_s: Option<f64>,
+}
+
+/// The record of a stream trial that ended as `end`, with its `stream` record; the fault log is
+/// closed here.
+pub(super) fn stream_trial_record(
+    data: &mut CellData,
+    index: u32,
+    end: StreamEnd,
+    stream: StreamRecord,
+) -> TrialRecord {
+    let faults = data.take_fault_records(end.failure.is_none());
+    let sim_time_s = data.cell.world.time_s();
+    TrialRecord {
+        trial: index,
+        seed: data.seed,
+        outcome: end.outcome,
+        failure: end.failure,
+        detail: end.detail,
+        part: None,
+        decision: None,
+        placed_bin: None,
+        distractor_touched: end.touched,
+        distractor_picked: end.picked,
+        distractor_displacement_mm: end.displacement_mm,
+        cycle_time_s: end.since_s.map_or(0.0, |t| sim_time_s - t),
+        sim_time_s,
+        motion: data.motion,
+        timing: data.timing.clone(),
+        stream: Some(stream),
+        grasp: None,
+        faults,
+        removals: 0,
+        passed: None,
     }
 }

@@ -12,26 +12,29 @@
 //! on.
 
 use super::belt_follow::{EyeWatch, Follow, HeldPart, Latched, Play};
+use super::belt_hold::NextPick;
 use super::cell_data::CellData;
 use super::judge::{self, CycleEvidence};
 use super::pick_cycle::{GRIP_BUILD_S, OPEN_FORCE_N, RELEASE_MARGIN_S, STOP_SETTLE_S, decide};
 use super::sorter::Sorter;
+use super::stream::{StreamEnd, stream_trial_record};
+use super::tracking_plan::Meet;
 use crate::cell::CellModel;
 use crate::control::{BeltDrive, HoldMonitor};
 use crate::outcome::{
     Failure, FailureReason, GraspRecord, Outcome, PartTracking, Phase, StreamPartRecord,
     StreamRecord, TrialRecord,
 };
-use crate::planning::{InterceptProblem, Payload, PickPlan, PlacePlan};
+use crate::planning::JointTrajectory;
 use crate::scenario::{BinId, PartTypeId};
 use crate::sim::JAW_SPEED_M_S;
-use crate::station::Percept;
+use nalgebra::Vector3;
 
 /// The pick window ends this far before the belt's end, m.
 const WINDOW_END_MARGIN_M: f64 = 0.1;
-/// Time allowed for the lift when checking that the arm still reaches where the belt will
-/// have carried the part by the lift's end, s (a lift takes 0.2-0.3 s).
-const LIFT_ALLOWANCE_S: f64 = 0.6;
+/// From over a bin, the arm rises this far straight up before it goes home, m, in steps.
+const RISE_M: f64 = 0.15;
+const RISE_STEPS: u32 = 15;
 /// Belt travel after the feeder's last item with nothing latched that ends the stream, m
 /// beyond the spawn distance.
 const DRAIN_TRAVEL_M: f64 = 0.5;
@@ -42,27 +45,6 @@ struct TrackedCycle {
     placed_bin: Option<BinId>,
     touched: bool,
     picked: bool,
-}
-
-/// Where and when the arm meets a part, and the pick planned for it there.
-struct Meet {
-    /// The place along the belt (world x), m.
-    x_m: f64,
-    /// When the part gets there, s from the planning.
-    meet_s: f64,
-    /// How long the arm waits before it sets off, s.
-    wait_s: f64,
-    pick: PickPlan,
-}
-
-/// `percept` moved `dx_m` along the belt, with everything it saw near the part.
-fn shifted(percept: &Percept, dx_m: f64) -> Percept {
-    let mut moved = percept.clone();
-    moved.part_xy[0] += dx_m;
-    for obstacle in &mut moved.obstacles {
-        obstacle.world_from_shape.translation.vector.x += dx_m;
-    }
-    moved
 }
 
 impl Sorter<'_> {
@@ -86,6 +68,7 @@ impl Sorter<'_> {
         data.belt.run_at(belt.speed_m_s);
         self.tracking = Some(super::at_eye::stream_tracking(model, data));
         let mut watch = EyeWatch::default();
+        watch.window = window;
         let mut parts: Vec<StreamPartRecord> = Vec::new();
         let (mut touched, mut picked) = (false, false);
         let mut halt: Option<Failure> = None;
@@ -93,53 +76,59 @@ impl Sorter<'_> {
         let mut fed = (data.feeder.remaining().count(), data.belt.encoder_counts());
         while halt.is_none() {
             let count = data.belt.encoder_counts();
-            if !watch.parts.is_empty() {
-                let started = std::time::Instant::now();
-                // Every part queued, met where it can be; the earliest meet is picked, those
-                // that can no longer be met ride on, the rest wait for the next round.
-                let mut met: Vec<(Latched, Option<Meet>)> = watch
-                    .parts
-                    .drain(..)
-                    .map(|item| {
-                        let meet = self.plan_intercept(model, data, &item, window);
-                        (item, meet)
-                    })
-                    .collect();
-                data.timing.planning_ms += started.elapsed().as_secs_f64() * 1e3;
-                let first = met
-                    .iter()
-                    .enumerate()
-                    .filter_map(|(i, (_, m))| m.as_ref().map(|m| (i, m.meet_s)))
-                    .min_by(|a, b| a.1.total_cmp(&b.1))
-                    .map(|(i, _)| i);
-                let chosen = first.map(|i| met.remove(i));
-                for (item, meet) in met {
-                    match meet {
-                        Some(_) => watch.parts.push_back(item),
-                        None => {
-                            let part_no = parts.len() as u32;
-                            let cycle =
-                                self.tracked_pick(model, data, &mut watch, &item, part_no, None);
-                            passed_tracks.extend(item.track);
-                            parts.push(cycle.record);
+            if !watch.parts.is_empty() || watch.belt.held {
+                let next = self.next_pick(model, data, &mut watch, window, belt.speed_m_s);
+                let to_pass = match next {
+                    NextPick::Pick(chosen) => {
+                        let (item, meet) = *chosen;
+                        let part_no = parts.len() as u32;
+                        let cycle =
+                            self.tracked_pick(model, data, &mut watch, &item, part_no, Some(meet));
+                        touched |= cycle.touched;
+                        picked |= cycle.picked;
+                        if let Some(bin) = cycle.placed_bin {
+                            data.bin_fill[bin.0] += 1;
                         }
+                        match cycle.record.outcome {
+                            Outcome::Success => self.close_picked(item.track),
+                            Outcome::Passed => passed_tracks.extend(item.track),
+                            Outcome::Failure => {
+                                halt = Some(Failure::new(FailureReason::Panic, ""));
+                            }
+                        }
+                        parts.push(cycle.record);
+                        continue;
                     }
+                    NextPick::Pass(items) if !items.is_empty() => items,
+                    NextPick::Again => continue,
+                    NextPick::Home => {
+                        if let Err(f) = self.go_home(model, data, &mut watch) {
+                            halt = Some(f);
+                        }
+                        continue;
+                    }
+                    NextPick::Pass(_) | NextPick::Tick => Vec::new(),
+                };
+                if !to_pass.is_empty() {
+                    for item in to_pass {
+                        let part_no = parts.len() as u32;
+                        let cycle =
+                            self.tracked_pick(model, data, &mut watch, &item, part_no, None);
+                        passed_tracks.extend(item.track);
+                        parts.push(cycle.record);
+                    }
+                    continue;
                 }
-                if let Some((item, meet)) = chosen {
-                    let part_no = parts.len() as u32;
-                    let cycle = self.tracked_pick(model, data, &mut watch, &item, part_no, meet);
-                    touched |= cycle.touched;
-                    picked |= cycle.picked;
-                    if let Some(bin) = cycle.placed_bin {
-                        data.bin_fill[bin.0] += 1;
-                    }
-                    match cycle.record.outcome {
-                        Outcome::Success => self.close_picked(item.track),
-                        Outcome::Passed => passed_tracks.extend(item.track),
-                        Outcome::Failure => halt = Some(Failure::new(FailureReason::Panic, "")),
-                    }
-                    parts.push(cycle.record);
+                data.hold();
+                if let Err(f) = self.tick_watching(model, data, &mut watch) {
+                    halt = Some(f);
                 }
+                continue;
+            }
+            if watch.parked
+                && let Err(f) = self.go_home(model, data, &mut watch)
+            {
+                halt = Some(f);
                 continue;
             }
             let remaining = data.feeder.remaining().count();
@@ -211,41 +200,28 @@ impl Sorter<'_> {
             )),
             (None, _) => None,
         };
-        let faults = data.take_fault_records(failure.is_none());
-        let sim_time_s = data.cell.world.time_s();
-        TrialRecord {
-            trial: index,
-            seed: data.seed,
+        let end = StreamEnd {
             outcome,
             failure,
             detail,
-            part: None,
-            decision: None,
-            placed_bin: None,
-            distractor_touched: touched,
-            distractor_picked: picked,
-            distractor_displacement_mm: 0.0,
-            cycle_time_s: watch.first_latch_s.map_or(0.0, |t| sim_time_s - t),
-            sim_time_s,
-            motion: data.motion,
-            timing: data.timing.clone(),
-            stream: Some(StreamRecord {
-                parts_planned: planned,
-                parts_sorted: sorted,
-                bottles_passed: watch.bottles,
-                belt_stops: 0,
-                parts,
-                misidentified: self.misidentified.take(),
-                tracks_opened: self.tracking.as_ref().map_or(0, |t| t.opened()),
-                passed_tracks: passed_tracks.iter().map(|t| t.0).collect(),
-                collected,
-                tracking: true,
-            }),
-            grasp: None,
-            faults,
-            removals: 0,
-            passed: None,
-        }
+            touched,
+            picked,
+            displacement_mm: 0.0,
+            since_s: watch.first_latch_s,
+        };
+        let stream = StreamRecord {
+            parts_planned: planned,
+            parts_sorted: sorted,
+            bottles_passed: watch.bottles,
+            belt_stops: watch.belt.count(),
+            parts,
+            misidentified: self.misidentified.take(),
+            tracks_opened: self.tracking.as_ref().map_or(0, |t| t.opened()),
+            passed_tracks: passed_tracks.iter().map(|t| t.0).collect(),
+            collected,
+            tracking: true,
+        };
+        stream_trial_record(data, index, end, stream)
     }
 
     /// One part met on the moving belt, or let ride on when it cannot be met; judged.
@@ -280,6 +256,15 @@ impl Sorter<'_> {
         let Some(meet) = meet else {
             record.outcome = Outcome::Passed;
             record.detail = Some("left the pick window unpicked: the arm could not meet it".into());
+            let (holds, hold_s) = watch.belt.of_part(item.part, data.cell.world.time_s());
+            if holds > 0 {
+                // Held for, then not pickable where it stood.
+                record.tracking = Some(PartTracking {
+                    belt_holds: holds,
+                    belt_hold_s: hold_s,
+                    ..PartTracking::default()
+                });
+            }
             return TrackedCycle {
                 record,
                 placed_bin: None,
@@ -289,6 +274,8 @@ impl Sorter<'_> {
         };
         let result = self.run_tracked(model, data, watch, item, meet, bin, &mut tracking);
         let result = result.map(|grasp| record.grasp = Some(grasp));
+        (tracking.belt_holds, tracking.belt_hold_s) =
+            watch.belt.of_part(item.part, data.cell.world.time_s());
         record.tracking = Some(tracking);
         let placed_bin = data.bin_holding(self.current);
         let evidence = CycleEvidence {
@@ -333,14 +320,18 @@ impl Sorter<'_> {
         bin: Option<BinId>,
         tracking: &mut PartTracking,
     ) -> Result<GraspRecord, Failure> {
-        let speed = model.scenario().conveyor.speed_m_s;
         let Meet {
             x_m: meet_x,
-            meet_s,
             wait_s,
+            speed_m_s: speed,
             pick,
+            ..
         } = meet;
-        let _ = meet_s;
+        // A part met on the moving belt is followed, and the belt is not held until it is
+        // lifted off; one standing on a held belt is picked as planned.
+        let moving = speed > 0.0;
+        watch.belt.armed = !moving;
+        watch.parked = false;
         let Some(bin) = bin else {
             return Err(Failure::new(FailureReason::WrongBin, "no bin named "));
         };
@@ -356,11 +347,11 @@ impl Sorter<'_> {
         let end_s = approach.duration_s();
         let play = Play::span(Phase::Approach, approach, (0.0, split_s));
         self.play_watching(model, data, watch, play, None)?;
-        let follow = Follow {
+        let follow = moving.then_some(Follow {
             part: item,
             plan_x_m: meet_x,
             speed_m_s: speed,
-        };
+        });
         let descend = (split_s, end_s);
         let play = Play::span(Phase::Descend, approach, descend).follow(follow);
         self.play_watching(model, data, watch, play, None)?;
@@ -400,12 +391,13 @@ impl Sorter<'_> {
             drift_mm: 0.0,
         };
         // The lift, planned for where the belt will have carried the part when it ends.
-        let (lift_x, place) = self.plan_lift_and_place(model, data, item, &pick, meet_x, bin)?;
-        let lift_follow = Follow {
+        let (lift_x, place) =
+            self.plan_lift_and_place(model, data, item, &pick, meet_x, bin, speed)?;
+        let lift_follow = moving.then_some(Follow {
             part: item,
             plan_x_m: lift_x,
             speed_m_s: speed,
-        };
+        });
         let carry = &place.carry;
         let split_s = carry.part_starts_s().get(1).copied().unwrap_or(0.0);
         let over = (split_s, carry.duration_s());
@@ -415,10 +407,18 @@ impl Sorter<'_> {
             Play::span(Phase::Transport, carry, over).settle(STOP_SETTLE_S),
             Play::span(Phase::Place, &place.lower, lower).settle(STOP_SETTLE_S),
         ];
-        for play in plays {
+        for (k, play) in plays.into_iter().enumerate() {
             let played = self.play_watching(model, data, watch, play, Some(&mut held));
             tracking.jaw_drift_mm = held.drift_mm;
             played?;
+            if k == 0 {
+                // The part is off the belt: a held belt runs again, and from here on a part
+                // queued that would leave the window while the arm is away holds it.
+                watch
+                    .belt
+                    .release(data, model.scenario().conveyor.speed_m_s);
+                watch.belt.armed = true;
+            }
         }
         data.phase = Phase::Release;
         let pads = data.cell.arm.finger_positions_m(&data.cell.world);
@@ -440,11 +440,14 @@ impl Sorter<'_> {
             .get(1)
             .copied()
             .unwrap_or(retreat.duration_s());
-        let parked = !watch.parts.is_empty();
+        let parked = !watch.parts.is_empty() || watch.belt.held;
         let rest_s = if parked { STOP_SETTLE_S } else { 0.0 };
         let play = Play::span(Phase::Retreat, retreat, (0.0, up_s)).settle(rest_s);
         self.play_watching(model, data, watch, play, None)?;
-        if !parked {
+        if parked {
+            // Waits over the bin; home from there when no part can be reached from it.
+            watch.parked = true;
+        } else {
             let home = (up_s, retreat.duration_s());
             let play = Play::span(Phase::Retreat, retreat, home);
             self.play_watching(model, data, watch, play, None)?;
@@ -452,133 +455,36 @@ impl Sorter<'_> {
         Ok(grasp_record)
     }
 
-    /// Where to meet `item`'s part: the place along the belt, how long the arm waits before
-    /// it sets off, and the pick planned for the part there. `None`: it cannot be met.
-    fn plan_intercept(
-        &self,
+    /// From where the arm waits over a bin (at rest) to home, along the joint path the
+    /// retreat's plan checked (from over the bin straight to home), timed from rest.
+    pub(super) fn go_home(
+        &mut self,
         model: &CellModel,
-        data: &CellData,
-        item: &Latched,
-        window: (f64, f64),
-    ) -> Option<Meet> {
-        let speed = model.scenario().conveyor.speed_m_s;
-        let bin = decide(model, &item.percept).1;
+        data: &mut CellData,
+        watch: &mut EyeWatch,
+    ) -> Result<(), Failure> {
+        watch.parked = false;
         let planner = &self.planner;
-        let x_latch = item.percept.part_xy[0];
-        let pick_at = |x: f64| {
-            let percept = shifted(&item.percept, x - x_latch);
-            let checker = planner.checker_for(&percept);
-            let pick = planner.plan_pick(&percept, &checker, &data.q).ok()?;
-            let split = pick.approach.part_starts_s().get(1).copied()?;
-            // The arm must still reach where the belt carries the part by the lift's end: the
-            // whole lift (from the grasp pose up), moved by the travel during the descent,
-            // the jaws' closing and the lift.
-            let close_s = planner.open_offset_m(&percept) / JAW_SPEED_M_S + GRIP_BUILD_S;
-            let follow_s = pick.approach.duration_s() - split + close_s + LIFT_ALLOWANCE_S;
-            match bin {
-                Some(bin) => {
-                    let lift_x = x + speed * follow_s;
-                    self.place_at(model, data, item, (&pick, x), lift_x, bin)
-                        .ok()?;
-                }
-                None => {
-                    let mut near = pick.lift_path.first().copied()?;
-                    for q in &pick.lift_path {
-                        near = self.shifted_ik(q, speed * follow_s, &near).ok()?;
-                    }
-                }
-            }
-            Some((split, pick))
-        };
-        let problem = InterceptProblem {
-            part_now_m: item.x_at(data.belt.encoder_counts()),
-            speed_m_s: speed,
-            window_m: window,
-        };
-        let meet = problem.solve(|x| pick_at(x).map(|(t, _)| t))?;
-        let (_, pick) = pick_at(meet.at_m)?;
-        Some(Meet {
-            x_m: meet.at_m,
-            meet_s: meet.meet_s,
-            wait_s: (meet.meet_s - meet.arrival_s).max(0.0),
-            pick,
-        })
-    }
-
-    /// The lift from the grasp, planned for the part where the belt will have carried it when
-    /// the lift ends (found in two rounds: the lift's time depends a little on where it is),
-    /// with the place that follows: the lift's place along the belt, and the place plan.
-    fn plan_lift_and_place(
-        &self,
-        model: &CellModel,
-        data: &CellData,
-        item: &Latched,
-        pick: &PickPlan,
-        meet_x: f64,
-        bin: BinId,
-    ) -> Result<(f64, PlacePlan), Failure> {
-        let speed = model.scenario().conveyor.speed_m_s;
-        let x_now = item.x_at(data.belt.encoder_counts());
-        let mut lift_s = 0.5;
-        let mut planned = None;
-        for _ in 0..3 {
-            let lift_x = x_now + speed * lift_s;
-            let place = self.place_at(model, data, item, (pick, meet_x), lift_x, bin)?;
-            let new_lift_s = place.carry.part_starts_s().get(1).copied().unwrap_or(0.0);
-            let settled = (new_lift_s - lift_s).abs() * speed < 0.000_2;
-            lift_s = new_lift_s;
-            planned = Some((lift_x, place));
-            if settled {
+        // Straight up first, clear of what stands in the bin, then over to home.
+        let mut up = vec![data.q];
+        for k in 1..=RISE_STEPS {
+            let rise = Vector3::new(0.0, 0.0, RISE_M * f64::from(k) / f64::from(RISE_STEPS));
+            let Some(q) = self.moved_ik(&data.q, &rise, &up[up.len() - 1]) else {
                 break;
-            }
+            };
+            up.push(q);
         }
-        planned.ok_or_else(|| Failure::new(FailureReason::Panic, "no lift planned"))
-    }
-
-    /// The place of `item`'s part into `bin` after a lift from the grasp of `pick` (planned
-    /// for the part at `meet_x`) moved to where the part stands at `lift_x` along the belt.
-    fn place_at(
-        &self,
-        model: &CellModel,
-        data: &CellData,
-        item: &Latched,
-        (pick, meet_x): (&PickPlan, f64),
-        lift_x: f64,
-        bin: BinId,
-    ) -> Result<PlacePlan, Failure> {
-        let planner = &self.planner;
-        let dx = lift_x - meet_x;
-        let mut path = Vec::with_capacity(pick.lift_path.len());
-        let mut near = pick.lift_path.first().copied().unwrap_or(pick.lift_end);
-        for q in &pick.lift_path {
-            near = self.shifted_ik(q, dx, &near)?;
-            path.push(near);
-        }
-        let lifted = PickPlan {
-            approach: pick.approach.clone(),
-            pregrasp: pick.pregrasp,
-            lift_end: path.last().copied().unwrap_or(near),
-            lift_path: path,
-            clearance_m: pick.clearance_m,
-            candidates: pick.candidates,
-        };
-        let percept = shifted(&item.percept, lift_x - item.percept.part_xy[0]);
-        let checker = planner.checker_for(&percept);
-        let payload = Payload {
-            mass_kg: model.catalogue().part(percept.part_type).mass_kg(),
-            grip_force_n: self.grip_recipe_n,
-            pad_friction: model.scenario().gripper.pad_friction,
-        };
-        let bin_body = &data.cell.bins[bin.0];
-        let placed_before = data.bin_fill[bin.0];
-        planner.plan_place(
-            &percept,
-            bin_body,
-            placed_before,
-            &lifted,
-            &payload,
-            &checker,
-        )
+        let top = up[up.len() - 1];
+        let speed = planner.speed_fraction;
+        let home = JointTrajectory::join(
+            vec![
+                JointTrajectory::along(&planner.model, up, speed),
+                JointTrajectory::through(&planner.model, &[top, planner.home_q_rad], speed),
+            ],
+            false,
+        );
+        let play = Play::span(Phase::Retreat, &home, (0.0, home.duration_s()));
+        self.play_watching(model, data, watch, play, None)
     }
 }
 
