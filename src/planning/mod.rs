@@ -12,6 +12,8 @@ mod payload;
 mod pick_planner;
 #[cfg(test)]
 mod pick_planner_tests;
+#[cfg(test)]
+mod second_look_tests;
 mod robot_shapes;
 mod straight_line;
 mod time_scaling;
@@ -28,7 +30,7 @@ pub use intercept::{Intercept, InterceptProblem};
 pub use payload::{GRIP_SAFETY_FACTOR, Payload};
 pub use pick_planner::{
     GRASP_TCP_ABOVE_BOTTOM_M, PART_OBSTACLE, PickPlan, PickPlanner, PlacePlan, PlaceSpot, bin_slot,
-    scenery_obstacles,
+    drop_second_looks, scenery_obstacles,
 };
 pub use robot_shapes::capture_robot_shapes;
 pub use straight_line::straight_line;

@@ -27,6 +27,8 @@ pub(super) const PAD_HALF_WIDTH_M: f64 = 0.015;
 pub(super) const LINE_STEP_M: f64 = 0.005;
 /// The planner's name for the part while it stands on the belt.
 pub const PART_OBSTACLE: &str = "part";
+/// Perception's name for a tube other than the part.
+const OTHER_PART: &str = "other part";
 /// Distance between neighbouring places for parts in a bin, m.
 const BIN_SLOT_PITCH_M: f64 = 0.09;
 /// Clearance the planner keeps from obstacles, m.
@@ -465,6 +467,20 @@ impl PickPlanner {
             )
         }
     }
+}
+
+/// Drops from `percept` what can only be its part seen a second time: an "other part" whose
+/// centre stands inside the part's own footprint (two upright tubes cannot stand inside each
+/// other). Its box, drawn over the part with another type's larger radius, would stand in the
+/// jaws' way to the part. One centred further off is kept: it may be a neighbour, or a bottle's
+/// cap read as a tube's end face.
+pub fn drop_second_looks(percept: &mut Percept) {
+    let [px, py] = percept.part_xy;
+    let part_r = percept.part_outer_radius_m;
+    percept.obstacles.retain(|o| {
+        let c = o.world_from_shape.translation.vector;
+        o.name != OTHER_PART || (c.x - px).hypot(c.y - py) >= part_r
+    });
 }
 
 /// Where in a bin the next part goes after `placed_before` others, from the floor's centre: the

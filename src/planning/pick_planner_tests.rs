@@ -15,7 +15,7 @@ use crate::station::{PerceivedObstacle, Percept, bottle_obstacle};
 const BELT_TOP_Z: f64 = 0.70;
 
 /// The scenarios' home: TCP pointing down 0.3 m in front of the base and 0.4 m above it.
-fn home() -> [f64; 6] {
+pub(super) fn home() -> [f64; 6] {
     RobotSection::default().home_q_rad
 }
 
@@ -48,7 +48,7 @@ fn robot_shapes() -> Vec<RobotShape> {
     ]
 }
 
-fn planner() -> PickPlanner {
+pub(super) fn planner() -> PickPlanner {
     let model = ArmModel::aubo_i5().with_tool(gripper_tcp());
     let Ok(ik) = AnalyticIk::new(model.clone()) else {
         panic!("the AUBO i5 model has a closed-form inverse");
@@ -77,7 +77,7 @@ fn payload() -> Payload {
     }
 }
 
-fn percept(xy: [f64; 2], obstacles: Vec<PerceivedObstacle>) -> Percept {
+pub(super) fn percept(xy: [f64; 2], obstacles: Vec<PerceivedObstacle>) -> Percept {
     Percept {
         part_type: crate::scenario::PartTypeId(2),
         part_xy: xy,

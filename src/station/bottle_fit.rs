@@ -40,11 +40,14 @@ pub struct BottlePose {
 /// Fits bottle poses to detected boxes for one calibrated camera and one bottle model.
 #[derive(Debug, Clone)]
 pub struct BottleFitter {
-    calibration: CameraCalibration,
-    radius_m: f64,
-    height_m: f64,
+    pub(super) calibration: CameraCalibration,
+    pub(super) radius_m: f64,
+    pub(super) height_m: f64,
     /// The vertices of the bottle's mesh in its own frame.
     silhouette: Silhouette,
+    /// Points inside the bottle's body, off its cap, in its own frame (the image's support of
+    /// a pose is read at their projections).
+    pub(super) body_points: Vec<Point3<f64>>,
 }
 
 impl BottleFitter {
@@ -52,11 +55,13 @@ impl BottleFitter {
     pub fn new(calibration: CameraCalibration, bottle: &BottleSection) -> Self {
         // The mesh repeats vertices per face; the silhouette keeps each point once.
         let mesh = Mesh::bottle(bottle.radius_m, bottle.height_m);
+        let points: Vec<Point3<f64>> = mesh.vertices.iter().map(|v| v.position).collect();
         Self {
             calibration,
             radius_m: bottle.radius_m,
             height_m: bottle.height_m,
-            silhouette: Silhouette::of_points(mesh.vertices.iter().map(|v| v.position)),
+            silhouette: Silhouette::of_points(points.iter().copied()),
+            body_points: body_points(&points, bottle.height_m),
         }
     }
 
@@ -69,7 +74,7 @@ impl BottleFitter {
 
     /// The pose of a bottle standing (`lying` false) or lying at `yaw_rad` with its middle over
     /// `(x, y)` on a belt whose top is at `belt_top_z_m`.
-    fn pose_at(
+    pub(super) fn pose_at(
         &self,
         lying: bool,
         yaw_rad: f64,
@@ -221,6 +226,36 @@ impl BottleFitter {
             && axis(a).dot(&axis(b)).abs() > 10f64.to_radians().cos()
             && (middle(a) - middle(b)).norm() < 0.01
     }
+}
+
+/// Levels along the axis and points around it of [`BottleFitter::body_points`], the share of
+/// the height they span (the dark cap above it left out), and the share of the body's local
+/// radius they lie at.
+const BODY_LEVELS: usize = 16;
+const BODY_ANGLES: usize = 6;
+const BODY_SPAN: (f64, f64) = (0.04, 0.88);
+const BODY_DEPTH: f64 = 0.6;
+
+/// Points inside a lathed body of `height_m` whose surface points are `surface` (its own
+/// frame, axis along z): at each level the body's radius there is the widest surface point
+/// within half a level's spacing.
+fn body_points(surface: &[Point3<f64>], height_m: f64) -> Vec<Point3<f64>> {
+    let spacing = height_m * (BODY_SPAN.1 - BODY_SPAN.0) / (BODY_LEVELS - 1) as f64;
+    let mut points = Vec::new();
+    for level in 0..BODY_LEVELS {
+        let z = height_m * BODY_SPAN.0 + spacing * level as f64;
+        let radius = surface
+            .iter()
+            .filter(|p| (p.z - z).abs() <= spacing)
+            .map(|p| p.x.hypot(p.y))
+            .fold(0.0, f64::max);
+        for k in 0..BODY_ANGLES {
+            let a = std::f64::consts::TAU * k as f64 / BODY_ANGLES as f64;
+            let r = BODY_DEPTH * radius;
+            points.push(Point3::new(r * a.cos(), r * a.sin(), z));
+        }
+    }
+    points
 }
 
 /// The median colour of the pixels on a ring `RING_PX` outside `box_px` (`pixel` reads one,

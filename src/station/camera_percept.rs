@@ -13,6 +13,7 @@ use std::time::Instant;
 use image::{GrayImage, RgbImage};
 use nalgebra::Point3;
 
+use super::bottle_evidence::bottle_sightings;
 use super::bottle_fit::{BottleFitter, BottlePose};
 use super::type_reader::TypeReader;
 use crate::camera::CameraCalibration;
@@ -164,6 +165,32 @@ impl std::fmt::Debug for CameraPerception {
     }
 }
 
+/// The bore finder for a part whose box is `box_px` in `calibration`'s frame, standing on a
+/// plane at `z_m`: `shared`, its circularity check widened by the foreshortening of an end face
+/// seen at the part's angle from the vertical (a round bore images as an ellipse of axis ratio
+/// `cos(angle)`; the plane measurement undoes it, the image check must let it through). The
+/// closed loop and `twincell calibrate`'s study both find bores through it.
+pub(super) fn bore_detector_at<'a>(
+    shared: &'a BoreDetector,
+    calibration: &CameraCalibration,
+    box_px: &[f64; 4],
+    z_m: f64,
+) -> std::borrow::Cow<'a, BoreDetector> {
+    let [x0, y0, x1, y1] = *box_px;
+    let Ok(on_plane) = calibration.pixel_to_height((x0 + x1) / 2.0, (y0 + y1) / 2.0, z_m) else {
+        return std::borrow::Cow::Borrowed(shared);
+    };
+    let ray = on_plane - calibration.origin_in_world();
+    let cos = (-ray.z / ray.norm()).clamp(0.0, 1.0);
+    let foreshortening = 2.0 * (1.0 - cos) / (1.0 + cos);
+    if foreshortening <= FORESHORTENING_ALLOWANCE {
+        return std::borrow::Cow::Borrowed(shared);
+    }
+    let mut params = shared.params;
+    params.max_roundness_ratio += foreshortening - FORESHORTENING_ALLOWANCE;
+    std::borrow::Cow::Owned(BoreDetector::new(params))
+}
+
 /// Takes an instance from `pool`, or makes one.
 fn take<T, E>(pool: &Mutex<Vec<T>>, make: impl FnOnce() -> Result<T, E>) -> Result<T, E> {
     let pooled = pool.lock().ok().and_then(|mut items| items.pop());
@@ -244,31 +271,6 @@ impl CameraPerception {
             bottle_class: FOREIGN_CLASSES.iter().find_map(|name| class_index(name)),
             bottle_fitter,
         })
-    }
-
-    /// The bore finder for a part whose box is `box_px`: the shared one, its circularity check
-    /// widened by the foreshortening of an end face seen at the part's angle from the vertical
-    /// (a round bore images as an ellipse of axis ratio `cos(angle)`; the plane measurement
-    /// undoes it, the image check must let it through).
-    fn bore_detector_at(
-        &self,
-        box_px: &[f64; 4],
-        belt_top_z_m: f64,
-    ) -> std::borrow::Cow<'_, BoreDetector> {
-        let [x0, y0, x1, y1] = *box_px;
-        let c = &self.rig.calibration;
-        let Ok(on_belt) = c.pixel_to_height((x0 + x1) / 2.0, (y0 + y1) / 2.0, belt_top_z_m) else {
-            return std::borrow::Cow::Borrowed(&self.bore_detector);
-        };
-        let ray = on_belt - c.origin_in_world();
-        let cos = (-ray.z / ray.norm()).clamp(0.0, 1.0);
-        let foreshortening = 2.0 * (1.0 - cos) / (1.0 + cos);
-        if foreshortening <= FORESHORTENING_ALLOWANCE {
-            return std::borrow::Cow::Borrowed(&self.bore_detector);
-        }
-        let mut params = self.bore_detector.params;
-        params.max_roundness_ratio += foreshortening - FORESHORTENING_ALLOWANCE;
-        std::borrow::Cow::Owned(BoreDetector::new(params))
     }
 
     /// The calibrated camera.
@@ -377,15 +379,7 @@ impl CameraPerception {
                 at_beam = Some((d, part, bottle));
             }
             if is_bottle {
-                let box_px = detection.box_px.map(f64::from);
-                let poses = self.bottle_fitter.fit(&box_px, belt_top_z_m);
-                let scale = f64::from(image.width()) / f64::from(self.rig.width_px);
-                bottles.push(BottleSighting {
-                    detection: index,
-                    poses: self
-                        .bottle_fitter
-                        .keep_supported(poses, &box_px, &image, scale),
-                });
+                bottles.push((index, detection.box_px.map(f64::from)));
                 continue;
             }
             let Some(type_index) = self
@@ -406,6 +400,15 @@ impl CameraPerception {
             }
             parts.push((index, type_index, centre_px));
         }
+        let frame_px = (self.rig.width_px, self.rig.height_px);
+        let (bottles, holder) = bottle_sightings(
+            &self.bottle_fitter,
+            &bottles,
+            &detections,
+            &image,
+            frame_px,
+            belt_top_z_m,
+        );
         let mut at_station = target.map(|_| StationItem::Part);
         if matches!(rule, TargetRule::AtBeam(_)) {
             target = None;
@@ -415,7 +418,7 @@ impl CameraPerception {
                     target = Some((d, part));
                     at_station = Some(StationItem::Part);
                 } else if let Some(bottle) = bottle {
-                    at_station = Some(StationItem::Bottle(bottle));
+                    at_station = Some(StationItem::Bottle(holder[bottle]));
                 }
             }
         }
@@ -436,7 +439,12 @@ impl CameraPerception {
                     let window_image = shot.render_window(renderer, &gpu, &window)?;
                     window_render_ms += rendered.elapsed().as_secs_f64() * 1e3;
                     let gray = image::imageops::grayscale(&window_image);
-                    let bore_detector = self.bore_detector_at(&box_px, belt_top_z_m);
+                    let bore_detector = bore_detector_at(
+                        &self.bore_detector,
+                        &self.rig.calibration,
+                        &box_px,
+                        belt_top_z_m,
+                    );
                     find_in_window(&bore_detector, &gray, &window, &box_px)
                         .map(|bore| (bore, window))
                 }

@@ -7,6 +7,7 @@
 //! world.
 
 pub mod belt_frame;
+mod bottle_evidence;
 pub mod bottle_fit;
 pub mod camera_percept;
 mod frame_check;
@@ -19,6 +20,7 @@ mod silhouette;
 pub mod type_reader;
 
 pub use belt_frame::{BeltFrame, SeenItem, TubeEnvelope};
+pub use bottle_evidence::{Evidence, MIN_SUPPORT, bottle_sightings};
 pub use bottle_fit::{BottleFitter, BottlePose};
 pub use camera_percept::{
     BottleSighting, CameraPerception, CameraPerceptionError, PartSighting, Sighting, StationItem,

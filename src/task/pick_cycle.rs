@@ -12,7 +12,7 @@ use crate::control::HoldMonitor;
 use crate::outcome::{
     DecisionRecord, Failure, FailureReason, GraspRecord, PartRecord, PassedRecord, Phase, fail,
 };
-use crate::planning::{JointTrajectory, Payload, PickPlan, PlacePlan};
+use crate::planning::{JointTrajectory, Payload, PickPlan, PlacePlan, drop_second_looks};
 use crate::scenario::{BinId, UNIDENTIFIED};
 use crate::sim::JAW_SPEED_M_S;
 use crate::station::{Percept, Sighting};
@@ -145,7 +145,9 @@ impl Sorter<'_> {
             data.phase = phase;
             match phase {
                 Phase::Perceive => {
-                    let percept = self.perceive(model, data, seen.take())?;
+                    let mut percept = self.perceive(model, data, seen.take())?;
+                    // The part detected twice is no obstacle to its own pick.
+                    drop_second_looks(&mut percept);
                     let (recorded, bin) = decide(model, &percept);
                     *decision = Some(recorded);
                     self.grip_recipe_n = catalogue.part(percept.part_type).grip_force_n;
