@@ -3,7 +3,7 @@
 
 pub use crate::camera::CameraCalibration;
 use crate::perception::bore::Bore;
-use crate::perception::circle_fit::fit_geometric;
+use crate::perception::circle_fit::fit_geometric_over_angle;
 use crate::perception::error::PerceptionError;
 use crate::perception::roundness::filtered_roundness_bridged;
 use nalgebra::Point3;
@@ -81,7 +81,7 @@ impl MeasureOnPlane for CameraCalibration {
         };
         let points_on_plane = on_plane(&bore.edge_points_px)?;
         let bridges_on_plane = on_plane(&bore.bridge_points_px)?;
-        let fit = fit_geometric(&points_on_plane)?;
+        let fit = fit_geometric_over_angle(&points_on_plane)?;
         let profile =
             filtered_roundness_bridged(&points_on_plane, &bridges_on_plane, fit.centre, max_upr)?;
         let n = points_on_plane.len() as f64;

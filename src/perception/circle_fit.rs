@@ -181,19 +181,132 @@ pub fn refine_geometric(
         }
         let jtj = Matrix3::new(s00, s01, s02, s01, s11, s12, s02, s12, s22);
         let jtr = Vector3::new(g0, g1, g2);
-        let Some(step) = jtj.lu().solve(&(-jtr)) else {
-            return Err(PerceptionError::DegenerateFit {
-                point_count: points.len(),
-            });
-        };
-        a += step[0];
-        b += step[1];
-        r += step[2];
-        if step.norm() <= 1e-12 * r.abs().max(1.0) {
+        if gauss_newton_step(&jtj, &jtr, &mut [&mut a, &mut b, &mut r], points.len())? {
             break;
         }
     }
     finish(points, [a, b], r)
+}
+
+/// A gap between neighbouring points (by angle about the centre) counts in their weights up to
+/// this many times the median gap: an arc without points (hidden, or its edges rejected) weighs
+/// the points at its ends at most 1.5 times an evenly spaced point, not by its length.
+pub const MAX_GAP_SHARE: f64 = 2.0;
+
+/// Geometric fit over the revolution: each point weighted by its share of the angle about the
+/// centre, so that the circle is the least-squares circle of the profile `r(theta)` integrated
+/// over the angle (ISO 12181's reference circle), whatever the points' angular density.
+///
+/// Edge points found on rays spread evenly in an image lie unevenly on the end-face plane of a
+/// tilted camera (denser where the plane is foreshortened): unweighted, the denser arcs pull the
+/// centre, and a lobed bore's harmonics, seen through that density, move it by a few per cent
+/// of the lobes' height (0.035 mm for a 3-lobe bore 0.86 mm out of round, seen at 30°): the
+/// roundness about that centre reads it as out of round. Started from [`fit_geometric`]; the weights are worked out again about
+/// each new centre.
+pub fn fit_geometric_over_angle(points: &[[f64; 2]]) -> Result<CircleFit, PerceptionError> {
+    let mut fit = fit_geometric(points)?;
+    for _ in 0..3 {
+        let weights = angular_shares(points, fit.centre);
+        let next = refine_weighted(points, &weights, fit)?;
+        let moved = distance(
+            next.centre[0] - fit.centre[0],
+            next.centre[1] - fit.centre[1],
+        );
+        fit = next;
+        if moved <= 1e-9 * fit.radius {
+            break;
+        }
+    }
+    Ok(fit)
+}
+
+/// Each point's share of the angle about `centre`: half the angles to its neighbours either side
+/// (by angle), each gap capped at [`MAX_GAP_SHARE`] times the median gap; scaled to a mean of 1.
+pub fn angular_shares(points: &[[f64; 2]], centre: [f64; 2]) -> Vec<f64> {
+    let n = points.len();
+    if n < 3 {
+        return vec![1.0; n];
+    }
+    let angles: Vec<f64> = points
+        .iter()
+        .map(|p| (p[1] - centre[1]).atan2(p[0] - centre[0]))
+        .collect();
+    let mut order: Vec<usize> = (0..n).collect();
+    order.sort_by(|&i, &j| angles[i].total_cmp(&angles[j]));
+    // gaps[k]: from the k-th point by angle to the next, wrapping round.
+    let mut gaps: Vec<f64> = (0..n)
+        .map(|k| {
+            let (a, b) = (angles[order[k]], angles[order[(k + 1) % n]]);
+            if k + 1 == n {
+                b + std::f64::consts::TAU - a
+            } else {
+                b - a
+            }
+        })
+        .collect();
+    let mut sorted = gaps.clone();
+    let mid = n / 2;
+    let (_, median, _) = sorted.select_nth_unstable_by(mid, f64::total_cmp);
+    let cap = MAX_GAP_SHARE * *median;
+    for gap in &mut gaps {
+        *gap = gap.min(cap);
+    }
+    let mut shares = vec![0.0; n];
+    for k in 0..n {
+        shares[order[k]] = 0.5 * (gaps[(k + n - 1) % n] + gaps[k]);
+    }
+    let mean = shares.iter().sum::<f64>() / n as f64;
+    if mean > 0.0 {
+        for share in &mut shares {
+            *share /= mean;
+        }
+    }
+    shares
+}
+
+/// Gauss-Newton refinement of a circle on `sum w (|p - c| - r)^2` from `start`.
+fn refine_weighted(
+    points: &[[f64; 2]],
+    weights: &[f64],
+    start: CircleFit,
+) -> Result<CircleFit, PerceptionError> {
+    let [mut a, mut b] = start.centre;
+    let mut r = start.radius;
+    for _ in 0..50 {
+        let mut jtj = Matrix3::<f64>::zeros();
+        let mut jtr = Vector3::<f64>::zeros();
+        for (p, &w) in points.iter().zip(weights) {
+            let (dx, dy) = (p[0] - a, p[1] - b);
+            let d = distance(dx, dy);
+            if d <= f64::EPSILON {
+                continue;
+            }
+            let row = Vector3::new(-dx / d, -dy / d, -1.0);
+            jtj += row * row.transpose() * w;
+            jtr += row * (w * (d - r));
+        }
+        if gauss_newton_step(&jtj, &jtr, &mut [&mut a, &mut b, &mut r], points.len())? {
+            break;
+        }
+    }
+    finish(points, [a, b], r)
+}
+
+/// One Gauss-Newton step of a circle fit: solves `jtj * step = -jtr` and adds the step to
+/// `[a, b, r]`; whether the step was small enough to stop. `point_count` names a degenerate fit.
+fn gauss_newton_step(
+    jtj: &Matrix3<f64>,
+    jtr: &Vector3<f64>,
+    params: &mut [&mut f64; 3],
+    point_count: usize,
+) -> Result<bool, PerceptionError> {
+    let Some(step) = jtj.lu().solve(&(-jtr)) else {
+        return Err(PerceptionError::DegenerateFit { point_count });
+    };
+    for (p, d) in params.iter_mut().zip(step.iter()) {
+        **p += d;
+    }
+    Ok(step.norm() <= 1e-12 * params[2].abs().max(1.0))
 }
 
 /// Roundness by eq. 11: `Rmax - Rmin` of the points' distances from `centre`.
@@ -315,6 +428,71 @@ mod tests {
                 bits(reference_refine(&points, start))
             );
         }
+    }
+
+    proptest! {
+        #[test]
+        fn the_fit_over_the_angle_ignores_how_densely_the_points_lie(
+            r in 5.0f64..200.0, amp in 0.0f64..0.05, lobes in 2u32..4, phase in 0.0f64..6.3,
+            density in 0.0f64..0.25, skew in 0.0f64..0.15,
+            hidden in prop_oneof![Just(0.0f64), 0.01f64..1.5], seed in any::<u64>()
+        ) {
+            // A lobed profile about (3, -2), its points denser on some arcs (as rays spread
+            // evenly in a tilted image lie on the end-face plane: a second and a first harmonic
+            // of density, up to 40 % together: a 35-degree tilt gives about 22 %) and either no
+            // arc without points or one of 0.01-1.5 rad. Beyond that, gaps pass the fit's cap
+            // of twice the median and the whole revolution's centre moves by more than a
+            // thousandth of the lobes (0.001 mm at 50 % on a 5 mm bore); a gap about one point
+            // spacing wide, 0.005-0.01 rad, is neither a whole revolution nor a hidden arc.
+            let mut rng = SimRng::new(seed);
+            let n = 720;
+            let start = rng.range(0.0, std::f64::consts::TAU);
+            let mut points = Vec::new();
+            let mut t = 0.0f64;
+            while t < std::f64::consts::TAU {
+                let profile = r * (1.0 + amp * (f64::from(lobes) * (t - phase)).cos());
+                if (t - start).rem_euclid(std::f64::consts::TAU) > hidden {
+                    points.push([3.0 + profile * t.cos(), -2.0 + profile * t.sin()]);
+                }
+                let rho = 1.0 + density * (2.0 * t).cos() + skew * (t + 1.0).cos();
+                t += std::f64::consts::TAU / n as f64 / rho;
+            }
+            let fit = fit_geometric_over_angle(&points)
+                .map_err(|e| TestCaseError::fail(e.to_string()))?;
+            // Over the whole revolution the reference circle of a lobed profile is centred on
+            // its centre; with an arc hidden, the lobes move it by less than their height.
+            let tol = if hidden > 0.01 { amp * r + 1e-9 * r } else { 1e-3 * amp * r + 1e-9 * r };
+            prop_assert!((fit.centre[0] - 3.0).hypot(fit.centre[1] + 2.0) <= tol,
+                "centre {:?} tol {}", fit.centre, tol);
+            prop_assert!((fit.radius - r).abs() <= tol + 1e-3 * amp * r);
+        }
+    }
+
+    #[test]
+    fn the_unweighted_fit_follows_the_denser_arcs() {
+        // Three lobes, points twice as dense about 0 and pi as about +-pi/2: the plain fit's
+        // centre moves by a share of the lobes' height; the fit over the angle's does not.
+        let (r, amp) = (100.0, 1.0);
+        let mut points = Vec::new();
+        let mut t = 0.0f64;
+        while t < std::f64::consts::TAU {
+            let profile = r + amp * (3.0 * t).cos();
+            points.push([profile * t.cos(), profile * t.sin()]);
+            t += std::f64::consts::TAU / 720.0 / (1.0 + 0.3 * (2.0 * t).cos());
+        }
+        let offset = |fit: CircleFit| fit.centre[0].hypot(fit.centre[1]);
+        let plain = fit_geometric(&points).unwrap_or_else(|e| panic!("{e}"));
+        let even = fit_geometric_over_angle(&points).unwrap_or_else(|e| panic!("{e}"));
+        assert!(
+            offset(plain) > 0.1 * amp,
+            "plain centre off by {}",
+            offset(plain)
+        );
+        assert!(
+            offset(even) < 0.01 * amp,
+            "centre over the angle off by {}",
+            offset(even)
+        );
     }
 
     #[test]

@@ -6,7 +6,7 @@
 
 use crate::camera::CameraCalibration;
 use crate::perception::Bore;
-use crate::perception::circle_fit::fit_geometric;
+use crate::perception::circle_fit::fit_geometric_over_angle;
 use crate::perception::roundness::median_of;
 
 /// A catalogue type's nominal sizes and the tolerance within which a reading names it, m.
@@ -72,7 +72,7 @@ pub fn read_on_plane(
             .collect::<Result<Vec<_>, _>>()
             .ok()
     };
-    let fit = fit_geometric(&on_plane(&bore.edge_points_px)?).ok()?;
+    let fit = fit_geometric_over_angle(&on_plane(&bore.edge_points_px)?).ok()?;
     let eye = calibration.origin_in_world();
     let outer_m = on_plane(&bore.outer_edge_points_px).and_then(|points| {
         outer_diameter_on_plane(&points, fit.centre, [eye.x, eye.y], outer_radius_m)

@@ -10,7 +10,7 @@
 use image::imageops::grayscale;
 use serde::Serialize;
 
-use super::camera_percept::{find_in_window, measure_found, part_window};
+use super::camera_percept::{bore_detector_at, find_in_window, measure_found, part_window};
 use crate::perception::identify::read_on_plane;
 use crate::perception::{BoreDetector, BoreDetectorParams};
 use crate::render::{CameraRig, RenderError, Renderer, Shot};
@@ -95,7 +95,14 @@ impl MetrologyStudy {
         let image = shot.render_window(renderer, &gpu, &window)?;
         let gray = grayscale(&image);
         let calibration = self.rig.calibration.with_end_face_height(part.end_face_z_m);
-        let measured = find_in_window(&self.bore_detector, &gray, &window, &box_px)
+        // The finder as the closed loop widens it for the part's angle from the vertical.
+        let finder = bore_detector_at(
+            &self.bore_detector,
+            &self.rig.calibration,
+            &box_px,
+            part.end_face_z_m,
+        );
+        let measured = find_in_window(&finder, &gray, &window, &box_px)
             .and_then(|bore| measure_found(bore, &window, &calibration));
         let Some((bore, plane)) = measured else {
             return Ok(ShotErrors::default());
