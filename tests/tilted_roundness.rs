@@ -70,20 +70,10 @@ fn measure_shot(
 ) -> Option<ShotErrors> {
     let mut rng = SimRng::derive(seed, index);
     let cell = Cell::build(model, &mut rng).unwrap_or_else(|e| panic!("{e}"));
-    let mut scene = Scene::from_cell(&cell, scenario);
-    let first = &cell.items.parts()[0];
-    let (part, body) = (&first.instance, first.body);
-    let pose = cell.body_pose(body)?;
-    let stop_x = scenario.conveyor.photo_eye_x_m - part.outer_radius_m;
-    let offset = Vector3::new(stop_x - pose.translation.x, 0.0, 0.0);
-    scene.translate_body(body, &offset);
-    for bottle in cell.items.bottles() {
-        scene.translate_body(bottle.body, &offset);
-    }
-    let object_index = scene
-        .objects
-        .iter()
-        .position(|o| o.body == Some(body) && matches!(o.kind, ObjectKind::Part(_)))?;
+    let (scene, object_index) = Scene::at_photo_eye(&cell, scenario)?;
+    let ObjectKind::Part(part) = scene.objects[object_index].kind.clone() else {
+        return None;
+    };
     let world_from_part = scene.objects[object_index].world_from_object;
     let face_true = world_from_part * Point3::new(0.0, 0.0, part.height_m / 2.0);
     let type_height_m = scenario.part_types[part.type_index].height_mm / 1e3;

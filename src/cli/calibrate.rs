@@ -186,27 +186,11 @@ fn stage(model: &CellModel, rig: &CameraRig, seed: u64, index: u64) -> Result<(S
     let scenario = model.scenario();
     let mut rng = SimRng::derive(seed ^ CALIBRATE_SALT, index);
     let cell = Cell::build(model, &mut rng)?;
-    let mut scene = Scene::from_cell(&cell, scenario);
-    let first = cell
-        .items
-        .parts()
-        .first()
-        .ok_or_else(|| anyhow!("shot {index}: the cell has no part"))?;
-    let (part, body) = (&first.instance, first.body);
-    let pose = cell
-        .body_pose(body)
-        .ok_or_else(|| anyhow!("shot {index}: the part has no body"))?;
-    let stop_x = scenario.conveyor.photo_eye_x_m - part.outer_radius_m;
-    let offset = Vector3::new(stop_x - pose.translation.x, 0.0, 0.0);
-    scene.translate_body(body, &offset);
-    for bottle in cell.items.bottles() {
-        scene.translate_body(bottle.body, &offset);
-    }
-    let object_index = scene
-        .objects
-        .iter()
-        .position(|o| o.body == Some(body) && matches!(o.kind, ObjectKind::Part(_)))
-        .ok_or_else(|| anyhow!("shot {index}: the part is not in the scene"))?;
+    let (scene, object_index) = Scene::at_photo_eye(&cell, scenario)
+        .ok_or_else(|| anyhow!("shot {index}: the cell has no part to stage"))?;
+    let ObjectKind::Part(part) = &scene.objects[object_index].kind else {
+        return Err(anyhow!("shot {index}: the staged object is not a part"));
+    };
     let height_m = scenario.part_types[part.type_index].height_mm / 1e3;
     let known = KnownPart {
         object_index,

@@ -170,6 +170,29 @@ impl Scene {
         }
     }
 
+    /// The scene of `cell` with its first part standing where the belt stops it (leading edge
+    /// at the photo-eye's beam, its drawn lateral offset kept) and the bottles keeping their
+    /// offsets from it: how `twincell calibrate` stages a shot of a pick station without
+    /// stepping the physics. Also gives the part's index among the scene's objects; `None`
+    /// when the cell has no part.
+    pub fn at_photo_eye(cell: &Cell, scenario: &Scenario) -> Option<(Self, usize)> {
+        let mut scene = Self::from_cell(cell, scenario);
+        let first = cell.items.parts().first()?;
+        let (part, body) = (&first.instance, first.body);
+        let pose = cell.body_pose(body)?;
+        let stop_x = scenario.conveyor.photo_eye_x_m - part.outer_radius_m;
+        let offset = Vector3::new(stop_x - pose.translation.x, 0.0, 0.0);
+        scene.translate_body(body, &offset);
+        for bottle in cell.items.bottles() {
+            scene.translate_body(bottle.body, &offset);
+        }
+        let index = scene
+            .objects
+            .iter()
+            .position(|o| o.body == Some(body) && matches!(o.kind, ObjectKind::Part(_)))?;
+        Some((scene, index))
+    }
+
     /// The part, if the scene has one.
     pub fn part(&self) -> Option<(&SceneObject, &PartInstance)> {
         self.objects.iter().find_map(|o| match &o.kind {
