@@ -445,8 +445,11 @@ impl Sorter<'_> {
         let play = Play::span(Phase::Retreat, retreat, (0.0, up_s)).settle(rest_s);
         self.play_watching(model, data, watch, play, None)?;
         if parked {
-            // Waits over the bin; home from there when no part can be reached from it.
+            // Waits over the bin, risen clear of it: from just over the bin the way to the
+            // belt seldom clears what stands in it, and every pick weighed from there was
+            // planned in vain. Home from up there when no part can be reached from it.
             watch.parked = true;
+            self.go_home(model, data, watch)?;
         } else {
             let home = (up_s, retreat.duration_s());
             let play = Play::span(Phase::Retreat, retreat, home);
