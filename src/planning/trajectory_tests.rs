@@ -188,7 +188,10 @@ fn a_tool_speed_cap_along_the_path_keeps_every_limit_and_is_never_slower_than_at
         check_limits(&arm, &along, fraction);
         // The joint path is the straight one from a to b.
         for k in 0..=50 {
-            let q = along.sample(along.duration_s() * f64::from(k) / 50.0).expect("samples").q;
+            let q = along
+                .sample(along.duration_s() * f64::from(k) / 50.0)
+                .expect("samples")
+                .q;
             let j = (0..DOF)
                 .max_by(|&i, &k| (b[i] - a[i]).abs().total_cmp(&(b[k] - a[k]).abs()))
                 .expect("joints");
@@ -197,8 +200,12 @@ fn a_tool_speed_cap_along_the_path_keeps_every_limit_and_is_never_slower_than_at
                 assert!((q[i] - (a[i] + (b[i] - a[i]) * u)).abs() < 1e-9);
             }
         }
-        let peak = JointTrajectory::through(&arm, &[a, b], fraction).with_tool_limits(&arm, &limits);
-        assert!(along.duration_s() <= peak.duration_s() * 1.02, "slower than the peak's cap");
+        let peak =
+            JointTrajectory::through(&arm, &[a, b], fraction).with_tool_limits(&arm, &limits);
+        assert!(
+            along.duration_s() <= peak.duration_s() * 1.02,
+            "slower than the peak's cap"
+        );
         if along.duration_s() < 0.95 * peak.duration_s() {
             quicker += 1;
         }
@@ -209,5 +216,8 @@ fn a_tool_speed_cap_along_the_path_keeps_every_limit_and_is_never_slower_than_at
         check_limits(&arm, &joined, fraction);
         assert_eq!(joined.end(), Some(b));
     }
-    assert!(quicker > 5, "only {quicker} of 30 moves quicker than capped at their peak");
+    assert!(
+        quicker > 5,
+        "only {quicker} of 30 moves quicker than capped at their peak"
+    );
 }
