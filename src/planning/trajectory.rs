@@ -109,7 +109,7 @@ pub struct JointTrajectory {
 const END_TOLERANCE_S: f64 = 1e-9;
 
 /// Cells of the grid on which [`JointTrajectory::along_tool_speed`] times its path.
-pub const RATE_NODES: usize = 200;
+const RATE_NODES: usize = 200;
 
 /// The tool speed a varying-rate profile aims under its cap, as the cap over this: the speed
 /// between the grid's nodes and the sampled check's peaks may differ a little.
@@ -167,7 +167,7 @@ impl JointTrajectory {
     /// One rest-to-rest motion along `path` (a joint-space polyline), as [`Self::along`], with
     /// the tool centre point's speed at most `limits.speed_m_s` at every point of the path: the
     /// rate varies along the path (fast where the tool moves little for the joints' motion,
-    /// slow where it swings out), time-optimal on a grid of [`RATE_NODES`] cells under the
+    /// slow where it swings out), time-optimal on a grid of 200 cells under the
     /// joints' velocity limits, that tool speed and the joints' acceleration limits; then
     /// slowed down uniformly if the measured tool motion still breaks `limits` (the tool's
     /// acceleration, or the speed between the grid's nodes).
