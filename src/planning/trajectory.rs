@@ -5,8 +5,12 @@
 //! No jerk limit is applied: none is published for the AUBO i5 (its MoveIt `joint_limits.yaml`
 //! gives velocity and acceleration only), so accelerations switch between their limits.
 
-use super::time_scaling::TimeScaling;
+use super::time_scaling::{ScalingSample, TimeScaling};
 use crate::kinematics::{ArmModel, DOF, JointVector, tcp_pose};
+use rate::RateTable;
+
+#[path = "trajectory_rate.rs"]
+mod rate;
 
 /// Desired joint state at one instant.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -33,8 +37,61 @@ pub struct ToolLimits {
 #[derive(Debug, Clone, PartialEq)]
 struct Segment {
     path: Vec<JointVector>,
-    scaling: TimeScaling,
+    scaling: Profile,
     start_s: f64,
+}
+
+/// How a segment's path parameter is timed.
+#[derive(Debug, Clone, PartialEq)]
+enum Profile {
+    /// Under one rate limit for the whole path.
+    Trapezoid(TimeScaling),
+    /// Under a rate limit that varies along the path.
+    Table(RateTable),
+}
+
+impl Profile {
+    fn duration_s(&self) -> f64 {
+        match self {
+            Self::Trapezoid(p) => p.duration_s(),
+            Self::Table(p) => p.duration_s(),
+        }
+    }
+
+    fn accel_s(&self) -> f64 {
+        match self {
+            Self::Trapezoid(p) => p.accel_s(),
+            Self::Table(p) => p.accel_s(),
+        }
+    }
+
+    fn decel_s(&self) -> f64 {
+        match self {
+            Self::Trapezoid(p) => p.decel_s(),
+            Self::Table(p) => p.decel_s(),
+        }
+    }
+
+    fn sample(&self, t_s: f64) -> ScalingSample {
+        match self {
+            Self::Trapezoid(p) => p.sample(t_s),
+            Self::Table(p) => p.sample(t_s),
+        }
+    }
+
+    fn stretched(&self, factor: f64) -> Self {
+        match self {
+            Self::Trapezoid(p) => Self::Trapezoid(p.stretched(factor)),
+            Self::Table(p) => Self::Table(p.stretched(factor)),
+        }
+    }
+
+    fn with_ramps(&self, accel_factor: f64, decel_factor: f64) -> Self {
+        match self {
+            Self::Trapezoid(p) => Self::Trapezoid(p.with_ramps(accel_factor, decel_factor)),
+            Self::Table(p) => Self::Table(p.with_ramps(accel_factor, decel_factor)),
+        }
+    }
 }
 
 /// A joint-space trajectory: segments that play one after the other, overlapping where blended.
@@ -50,6 +107,13 @@ pub struct JointTrajectory {
 /// Time within which a segment counts as finished, s: laying segments out end to end sums
 /// durations, and the rounding must not leave a segment a hair short of its end point.
 const END_TOLERANCE_S: f64 = 1e-9;
+
+/// Cells of the grid on which [`JointTrajectory::along_tool_speed`] times its path.
+const RATE_NODES: usize = 200;
+
+/// The tool speed a varying-rate profile aims under its cap, as the cap over this: the speed
+/// between the grid's nodes and the sampled check's peaks may differ a little.
+const TOOL_SPEED_MARGIN: f64 = 1.02;
 
 /// Sampling interval of the TCP check in [`JointTrajectory::within_tool_limits`], s.
 const TOOL_CHECK_DT_S: f64 = 0.004;
@@ -92,12 +156,81 @@ impl JointTrajectory {
         Self {
             segments: vec![Segment {
                 path,
-                scaling,
+                scaling: Profile::Trapezoid(scaling),
                 start_s: 0.0,
             }],
             part_starts_s: vec![0.0],
             part_ends_s: vec![duration_s],
         }
+    }
+
+    /// One rest-to-rest motion along `path` (a joint-space polyline), as [`Self::along`], with
+    /// the tool centre point's speed at most `limits.speed_m_s` at every point of the path: the
+    /// rate varies along the path (fast where the tool moves little for the joints' motion,
+    /// slow where it swings out), time-optimal on a grid of 200 cells under the
+    /// joints' velocity limits, that tool speed and the joints' acceleration limits; then
+    /// slowed down uniformly if the measured tool motion still breaks `limits` (the tool's
+    /// acceleration, or the speed between the grid's nodes).
+    pub fn along_tool_speed(
+        arm: &ArmModel,
+        path: Vec<JointVector>,
+        speed_fraction: f64,
+        limits: &ToolLimits,
+    ) -> Self {
+        let plain = Self::along(arm, path.clone(), speed_fraction);
+        let Profile::Trapezoid(trapezoid) = plain.segments[0].scaling else {
+            return plain;
+        };
+        if path.len() < 2 || trapezoid.max_rate >= 1e8 {
+            return plain;
+        }
+        let at = |s: f64| {
+            let pieces = path.len() - 1;
+            let position = s.clamp(0.0, 1.0) * pieces as f64;
+            let index = (position.floor() as usize).min(pieces - 1);
+            let fraction = position - index as f64;
+            let (a, b) = (path[index], path[index + 1]);
+            let q: JointVector = std::array::from_fn(|j| a[j] + (b[j] - a[j]) * fraction);
+            tcp_pose(arm, &q).translation.vector
+        };
+        let n = RATE_NODES;
+        let ds = 1.0 / n as f64;
+        let tcp: Vec<_> = (0..=n).map(|i| at(i as f64 * ds)).collect();
+        // The tool's path length per unit of the parameter at each node (central differences).
+        let cap = limits.speed_m_s / TOOL_SPEED_MARGIN;
+        let bound: Vec<f64> = (0..=n)
+            .map(|i| {
+                let (lo, hi) = (i.saturating_sub(1), (i + 1).min(n));
+                let dp_ds = (tcp[hi] - tcp[lo]).norm() / ((hi - lo) as f64 * ds);
+                let tool = if dp_ds > 0.0 {
+                    cap / dp_ds
+                } else {
+                    f64::INFINITY
+                };
+                trapezoid.max_rate.min(tool)
+            })
+            .collect();
+        // Each node keeps to its neighbours' bounds too: the tool speed between two nodes.
+        let limit: Vec<f64> = (0..=n)
+            .map(|i| {
+                bound[i.saturating_sub(1)..=(i + 1).min(n)]
+                    .iter()
+                    .copied()
+                    .fold(f64::INFINITY, f64::min)
+            })
+            .collect();
+        let table = RateTable::new(limit, trapezoid.accel, trapezoid.decel);
+        let duration_s = table.duration_s();
+        Self {
+            segments: vec![Segment {
+                path,
+                scaling: Profile::Table(table),
+                start_s: 0.0,
+            }],
+            part_starts_s: vec![0.0],
+            part_ends_s: vec![duration_s],
+        }
+        .within_tool_limits(arm, limits)
     }
 
     /// `parts` one after the other, each starting where the previous one ends. `blended`
@@ -210,8 +343,11 @@ impl JointTrajectory {
         let mut end_s = 0.0;
         let mut part = 0;
         for segment in &mut slowed.segments {
-            let s = segment.scaling;
-            segment.scaling = TimeScaling::new(s.max_rate * factor, s.accel, s.decel);
+            if let Profile::Trapezoid(s) = &segment.scaling {
+                let s = *s;
+                segment.scaling =
+                    Profile::Trapezoid(TimeScaling::new(s.max_rate * factor, s.accel, s.decel));
+            }
             if part < slowed.part_starts_s.len()
                 && (segment.start_s - slowed.part_starts_s[part]).abs() <= END_TOLERANCE_S
             {

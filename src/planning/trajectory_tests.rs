@@ -167,3 +167,57 @@ fn tool_limits_slow_the_whole_path_down() {
         check_limits(&arm, &capped, 1.0);
     }
 }
+
+#[test]
+fn a_tool_speed_cap_along_the_path_keeps_every_limit_and_is_never_slower_than_at_the_peak() {
+    let arm = ArmModel::aubo_i5().with_tool(nalgebra::Isometry3::translation(0.0, 0.0, 0.125));
+    let mut rng = SimRng::new(26);
+    let mut quicker = 0;
+    for _ in 0..30 {
+        let (a, b) = (random_q(&mut rng, &arm), random_q(&mut rng, &arm));
+        let fraction = rng.range(0.3, 1.0);
+        let limits = ToolLimits {
+            speed_m_s: rng.range(0.3, 1.5),
+            accel_m_s2: rng.range(5.0, 100.0),
+        };
+        let along = JointTrajectory::along_tool_speed(&arm, vec![a, b], fraction, &limits);
+        let (speed, accel) = along.peak_tool_motion(&arm);
+        assert!(speed <= limits.speed_m_s * 1.01, "{speed} over {limits:?}");
+        assert!(accel <= limits.accel_m_s2 * 1.01, "{accel} over {limits:?}");
+        assert_eq!((along.start(), along.end()), (Some(a), Some(b)));
+        check_limits(&arm, &along, fraction);
+        // The joint path is the straight one from a to b.
+        for k in 0..=50 {
+            let q = along
+                .sample(along.duration_s() * f64::from(k) / 50.0)
+                .expect("samples")
+                .q;
+            let j = (0..DOF)
+                .max_by(|&i, &k| (b[i] - a[i]).abs().total_cmp(&(b[k] - a[k]).abs()))
+                .expect("joints");
+            let u = (q[j] - a[j]) / (b[j] - a[j]);
+            for i in 0..DOF {
+                assert!((q[i] - (a[i] + (b[i] - a[i]) * u)).abs() < 1e-9);
+            }
+        }
+        let peak =
+            JointTrajectory::through(&arm, &[a, b], fraction).with_tool_limits(&arm, &limits);
+        assert!(
+            along.duration_s() <= peak.duration_s() * 1.02,
+            "slower than the peak's cap"
+        );
+        if along.duration_s() < 0.95 * peak.duration_s() {
+            quicker += 1;
+        }
+        // Blended behind a move, it keeps the blend's continuity and the limits.
+        let c = random_q(&mut rng, &arm);
+        let lead = JointTrajectory::through(&arm, &[c, a], fraction);
+        let joined = JointTrajectory::join(vec![lead, along], true);
+        check_limits(&arm, &joined, fraction);
+        assert_eq!(joined.end(), Some(b));
+    }
+    assert!(
+        quicker > 5,
+        "only {quicker} of 30 moves quicker than capped at their peak"
+    );
+}

@@ -152,7 +152,8 @@ pub(super) enum NextPick {
     Tick,
     /// Choose again (the belt was held or let run).
     Again,
-    /// The arm, parked over a bin, reaches no part from there: home first.
+    /// The arm, parked over a bin, reaches no part from there: up clear of the bin first,
+    /// and home when it reaches none from there either.
     Home,
 }
 

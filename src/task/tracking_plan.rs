@@ -12,7 +12,10 @@ use crate::cell::BinBody;
 use crate::cell::CellModel;
 use crate::kinematics::JointVector;
 use crate::outcome::{Failure, FailureReason};
-use crate::planning::{InterceptProblem, Payload, PickPlan, PlacePlan, bin_slot};
+use crate::planning::{
+    InterceptProblem, JointTrajectory, PART_OBSTACLE, Payload, PickPlan, PlacePlan, ToolLimits,
+    bin_slot,
+};
 use crate::scenario::BinId;
 use crate::sim::JAW_SPEED_M_S;
 use crate::station::{PerceivedObstacle, Percept};
@@ -24,6 +27,13 @@ use rapier3d::geometry::SharedShape;
 const LIFT_ALLOWANCE_S: f64 = 0.6;
 /// Step of the walk back along the window for the standing limit, m.
 const STANDING_STEP_M: f64 = 0.03;
+/// The tool's speed cap over to the bin, m/s, at every point of the path (the joints' own
+/// limits and the grip's acceleration limit apply too; the hold monitor watches the part).
+const TRACKING_CARRY_SPEED_M_S: f64 = 1.0;
+/// The most of the joints' limits the move over to the bin uses: with the tool's cap raised the
+/// joints bind, and the simulated servos overshoot a step in acceleration by several per cent
+/// (at the scenario's 0.85 a joint was measured at 1.001 of its limit).
+const TRACKING_CARRY_JOINT_FRACTION: f64 = 0.8;
 
 /// Where and when the arm meets a part, and the pick planned for it there.
 pub(super) struct Meet {
@@ -68,14 +78,30 @@ impl Sorter<'_> {
         window: (f64, f64),
         speed_m_s: f64,
     ) -> Option<Meet> {
-        let pick_at = |x: f64| self.tracked_pick_at(model, data, item, x, speed_m_s, &data.q);
         let problem = InterceptProblem {
             part_now_m: item.x_at(data.belt.encoder_counts()),
             speed_m_s,
             window_m: window,
         };
-        let meet = problem.solve(|x| pick_at(x).map(|p| p.arrival_s))?;
-        let at = pick_at(meet.at_m)?;
+        // A place the arm gets to after the part needs no lift and place planned there: it is
+        // late whatever they are. The last place found in time is kept for the meet.
+        let mut in_time: Option<(f64, PickAt)> = None;
+        let meet = problem.solve(|x| {
+            let deadline_s = problem.part_at_s(x);
+            let at = self.tracked_pick_at(model, data, item, x, speed_m_s, &data.q, deadline_s)?;
+            let arrival_s = at.arrival_s;
+            if arrival_s <= deadline_s {
+                in_time = Some((x, at));
+            }
+            Some(arrival_s)
+        })?;
+        let at = match in_time {
+            Some((x, at)) if x == meet.at_m => at,
+            _ => {
+                let q = &data.q;
+                self.tracked_pick_at(model, data, item, meet.at_m, speed_m_s, q, f64::INFINITY)?
+            }
+        };
         Some(Meet {
             x_m: meet.at_m,
             wait_s: (meet.meet_s - meet.arrival_s).max(0.0),
@@ -99,7 +125,7 @@ impl Sorter<'_> {
         if x > window.1 {
             return None;
         }
-        let at = self.tracked_pick_at(model, data, item, x, 0.0, &data.q)?;
+        let at = self.tracked_pick_at(model, data, item, x, 0.0, &data.q, f64::INFINITY)?;
         Some(Meet {
             x_m: x,
             wait_s: 0.0,
@@ -127,7 +153,7 @@ impl Sorter<'_> {
         let mut x = window.1;
         while x >= from {
             if self
-                .tracked_pick_at(model, data, item, x, 0.0, home)
+                .tracked_pick_at(model, data, item, x, 0.0, home, f64::INFINITY)
                 .is_some()
             {
                 return Some(x);
@@ -140,7 +166,9 @@ impl Sorter<'_> {
     /// The pick of `item`'s part met at `x` along the belt running at `speed`, the arm setting
     /// off from `q_from`, when the whole pick can be planned: the lift's end moved with the
     /// belt, then the place into its bin (or, for a part with no bin, the whole lift within
-    /// reach).
+    /// reach). An arm that gets over `x` later than `deadline_s` is late there whatever comes
+    /// after: the pick is given without the lift and place checked.
+    #[allow(clippy::too_many_arguments)]
     fn tracked_pick_at(
         &self,
         model: &CellModel,
@@ -149,6 +177,7 @@ impl Sorter<'_> {
         x: f64,
         speed: f64,
         q_from: &JointVector,
+        deadline_s: f64,
     ) -> Option<PickAt> {
         let bin = decide(model, &item.percept).1;
         let planner = &self.planner;
@@ -165,6 +194,13 @@ impl Sorter<'_> {
         // jaws' closing and the lift.
         let close_s = planner.open_offset_m(&percept) / JAW_SPEED_M_S + GRIP_BUILD_S;
         let follow_s = pick.approach.duration_s() - split + close_s + LIFT_ALLOWANCE_S;
+        if split > deadline_s {
+            return Some(PickAt {
+                arrival_s: split,
+                follow_s,
+                pick,
+            });
+        }
         let mut near = pick.lift_path.first().copied()?;
         for q in &pick.lift_path {
             near = self.shifted_ik(q, speed * follow_s, &near).ok()?;
@@ -173,7 +209,8 @@ impl Sorter<'_> {
             // The lift and place as they will be planned once the jaws hold, from where the
             // belt will have carried the part by then.
             let grasped_x = x + speed * (follow_s - LIFT_ALLOWANCE_S);
-            self.lift_and_place_from(model, data, item, (&pick, x), grasped_x, bin, speed)
+            let from = (&pick, x);
+            self.lift_and_place_from(model, data, item, from, grasped_x, bin, speed, false)
                 .ok()?;
         }
         Some(PickAt {
@@ -199,10 +236,11 @@ impl Sorter<'_> {
         speed: f64,
     ) -> Result<(f64, PlacePlan), Failure> {
         let x_now = item.x_at(data.belt.encoder_counts());
-        self.lift_and_place_from(model, data, item, (pick, meet_x), x_now, bin, speed)
+        self.lift_and_place_from(model, data, item, (pick, meet_x), x_now, bin, speed, true)
     }
 
-    /// [`Self::plan_lift_and_place`] for the part at `x_now` along the belt.
+    /// [`Self::plan_lift_and_place`] for the part at `x_now` along the belt; `fast`: the
+    /// transport timed with the tool's speed cap along its path (see [`Self::place_at`]).
     #[allow(clippy::too_many_arguments)]
     fn lift_and_place_from(
         &self,
@@ -213,12 +251,13 @@ impl Sorter<'_> {
         x_now: f64,
         bin: BinId,
         speed: f64,
+        fast: bool,
     ) -> Result<(f64, PlacePlan), Failure> {
         let mut lift_s = 0.5;
         let mut planned = None;
         for _ in 0..3 {
             let lift_x = x_now + speed * lift_s;
-            let place = self.place_at(model, data, item, (pick, meet_x), lift_x, bin)?;
+            let place = self.place_at(model, data, item, (pick, meet_x), lift_x, bin, fast)?;
             let new_lift_s = place.carry.part_starts_s().get(1).copied().unwrap_or(0.0);
             let settled = (new_lift_s - lift_s).abs() * speed < 0.000_2;
             lift_s = new_lift_s;
@@ -232,6 +271,10 @@ impl Sorter<'_> {
 
     /// The place of `item`'s part into `bin` after a lift from the grasp of `pick` (planned
     /// for the part at `meet_x`) moved to where the part stands at `lift_x` along the belt.
+    /// `fast`: the move over to the bin timed with the carry's tool speed cap at every point of
+    /// its path rather than at its peak (`JointTrajectory::along_tool_speed`; the same joint
+    /// path, checked again with the part in the jaws), when that is quicker and clear.
+    #[allow(clippy::too_many_arguments)]
     fn place_at(
         &self,
         model: &CellModel,
@@ -240,6 +283,7 @@ impl Sorter<'_> {
         (pick, meet_x): (&PickPlan, f64),
         lift_x: f64,
         bin: BinId,
+        fast: bool,
     ) -> Result<PlacePlan, Failure> {
         let planner = &self.planner;
         let dx = lift_x - meet_x;
@@ -269,14 +313,36 @@ impl Sorter<'_> {
             grip_force_n: model.catalogue().part(percept.part_type).grip_force_n,
             pad_friction: model.scenario().gripper.pad_friction,
         };
-        planner.plan_place(
+        let mut place = planner.plan_place(
             &percept,
             bin_body,
             placed_before,
             &lifted,
             &payload,
             &checker,
-        )
+        )?;
+        if fast && let Some(q_above) = place.lower.start() {
+            let limits = ToolLimits {
+                speed_m_s: TRACKING_CARRY_SPEED_M_S,
+                ..payload.tool_limits()
+            };
+            let (arm, fraction) = (&planner.model, planner.carry_speed_fraction);
+            let lift = JointTrajectory::along(arm, lifted.lift_path.clone(), fraction)
+                .with_tool_limits(arm, &limits);
+            let path = vec![lifted.lift_end, q_above];
+            let joints = fraction.min(TRACKING_CARRY_JOINT_FRACTION);
+            let transport = JointTrajectory::along_tool_speed(arm, path, joints, &limits);
+            let carry =
+                JointTrajectory::join(vec![lift, transport], true).within_tool_limits(arm, &limits);
+            let over_s = (carry.part_starts_s()[1], carry.duration_s());
+            let carried = planner.carried_for(&percept);
+            let grip = percept.part_outer_radius_m;
+            let hit = checker.check_span(&carry, over_s, grip, Some(&carried), &[PART_OBSTACLE]);
+            if hit.is_none() && carry.duration_s() < place.carry.duration_s() {
+                place.carry = carry;
+            }
+        }
+        Ok(place)
     }
 }
 
