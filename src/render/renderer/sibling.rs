@@ -1,0 +1,61 @@
+//! Renderers that share one device: a second worker's renderer made on the first one's device
+//! draws with the same compiled pipelines.
+//!
+//! On the software adapter (llvmpipe over wgpu's GL backend) each device is a GL context, and
+//! llvmpipe compiles (LLVM) a pipeline's shaders for each context at its first draw: about 0.85 G
+//! instructions a context for the camera's pipelines, once more for every worker thread that
+//! made its own renderer (callgrind, paper_50 camera, `--jobs 2`). A sibling shares the device,
+//! the queue and the pipelines, so they compile once per process; it has its own uniform
+//! buffers and render targets, so siblings on different threads draw independently (the
+//! device serialises their GL calls). Images do not depend on which sibling drew them.
+
+use std::sync::Arc;
+
+use super::{Globals, Renderer, TargetCache};
+
+/// A uniform buffer for a frame's [`Globals`] and its bind group in `layout`.
+pub(super) fn globals_binding(
+    device: &wgpu::Device,
+    layout: &wgpu::BindGroupLayout,
+) -> (wgpu::Buffer, wgpu::BindGroup) {
+    let globals = device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("globals"),
+        size: std::mem::size_of::<Globals>() as u64,
+        usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("globals"),
+        layout,
+        entries: &[wgpu::BindGroupEntry {
+            binding: 0,
+            resource: globals.as_entire_binding(),
+        }],
+    });
+    (globals, group)
+}
+
+impl Renderer {
+    /// A renderer on this one's device and with its pipelines (those built so far and those
+    /// either builds later), but its own uniforms and render targets: for another thread, without
+    /// a second device or a second compilation of the shaders (see the module docs).
+    pub fn sibling(&self) -> Self {
+        let (globals, globals_group) = globals_binding(&self.device, &self.globals_layout);
+        Self {
+            device: self.device.clone(),
+            queue: self.queue.clone(),
+            info: self.info.clone(),
+            options: self.options,
+            module: self.module.clone(),
+            layout: self.layout.clone(),
+            shaded: Arc::clone(&self.shaded),
+            ids: self.ids.clone(),
+            globals_layout: self.globals_layout.clone(),
+            globals,
+            globals_group,
+            object_layout: self.object_layout.clone(),
+            objects: None,
+            targets: TargetCache::default(),
+        }
+    }
+}
