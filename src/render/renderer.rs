@@ -53,6 +53,8 @@ pub struct Renderer {
     object_layout: wgpu::BindGroupLayout,
     objects: Option<(wgpu::Buffer, wgpu::BindGroup, usize)>,
     targets: TargetCache,
+    /// Held (by this renderer or a sibling) while the device is used: see [`Self::hold_device`].
+    device_lock: Arc<Mutex<()>>,
 }
 
 impl Renderer {
@@ -147,6 +149,7 @@ impl Renderer {
             object_layout,
             objects: None,
             targets: TargetCache::default(),
+            device_lock: Arc::default(),
         })
     }
 
@@ -167,6 +170,7 @@ impl Renderer {
 
     /// Uploads a scene's meshes.
     pub fn upload(&self, scene: &Scene) -> GpuScene {
+        let _device = self.hold_device();
         let mut vertices = Vec::with_capacity(scene.triangle_count() * 3);
         let mut ranges = Vec::with_capacity(scene.objects.len());
         let mut bounds = Vec::with_capacity(scene.objects.len());
@@ -247,6 +251,8 @@ impl Renderer {
     ) -> Result<RgbImage, RenderError> {
         let s = self.options.supersample;
         let (w, h) = (exposure.width_px * s, exposure.height_px * s);
+        let device_lock = Arc::clone(&self.device_lock);
+        let _device = device_lock.lock().unwrap_or_else(PoisonError::into_inner);
         let visible = self.prepare(scene, exposure)?;
         let class = self
             .targets
@@ -302,6 +308,8 @@ impl Renderer {
         exposure: &Exposure,
     ) -> Result<ImageBuffer<Luma<u32>, Vec<u32>>, RenderError> {
         let (w, h) = (exposure.width_px, exposure.height_px);
+        let device_lock = Arc::clone(&self.device_lock);
+        let _device = device_lock.lock().unwrap_or_else(PoisonError::into_inner);
         let visible = self.prepare(scene, exposure)?;
         let class = self
             .targets

@@ -514,6 +514,8 @@ impl CameraPerception {
         }
         let metrology_ms = started.elapsed().as_secs_f64() * 1e3 - window_render_ms;
         render_ms += window_render_ms;
+        // The scene's buffers are freed while no sibling renderer draws (`Renderer::hold_device`).
+        drop((gpu, renderer.hold_device()));
         Ok(Sighting {
             image,
             detections,

@@ -6,10 +6,12 @@
 //! instructions a context for the camera's pipelines, once more for every worker thread that
 //! made its own renderer (callgrind, paper_50 camera, `--jobs 2`). A sibling shares the device,
 //! the queue and the pipelines, so they compile once per process; it has its own uniform
-//! buffers and render targets, so siblings on different threads draw independently (the
-//! device serialises their GL calls). Images do not depend on which sibling drew them.
+//! buffers and render targets. Siblings take turns at the device: each upload and render holds
+//! the family's lock ([`Renderer::hold_device`]), for wgpu's GL backend gives up (panics) on a
+//! thread that waits for its context longer than a few seconds, as one could behind several
+//! renders. Images do not depend on which sibling drew them.
 
-use std::sync::Arc;
+use std::sync::{Arc, MutexGuard, PoisonError};
 
 use super::{Globals, Renderer, TargetCache};
 
@@ -56,6 +58,16 @@ impl Renderer {
             object_layout: self.object_layout.clone(),
             objects: None,
             targets: TargetCache::default(),
+            device_lock: Arc::clone(&self.device_lock),
         }
+    }
+
+    /// Holds the device for this renderer and its siblings until the guard drops: for dropping a
+    /// [`super::GpuScene`] (which frees device memory) where a sibling may be drawing. Uploads and
+    /// renders hold it themselves; holding it around one of them deadlocks.
+    pub fn hold_device(&self) -> MutexGuard<'_, ()> {
+        self.device_lock
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
     }
 }
