@@ -213,9 +213,9 @@ fn give_back<T>(pool: &Mutex<Vec<T>>, item: T) {
 }
 
 impl CameraPerception {
-    /// The pipeline for `scenario` with the detector's network `model`: makes one renderer and
-    /// takes the process's detector for `model` (loading it if no pipeline has), so that a
-    /// missing adapter or model fails here, before any trial.
+    /// The pipeline for `scenario` with the detector's network `model`: takes a renderer on the
+    /// process's device and the process's detector for `model` (making them if no pipeline has),
+    /// so that a missing adapter or model fails here, before any trial.
     pub fn new(scenario: &Scenario, model: DetectorModel) -> Result<Self, CameraPerceptionError> {
         let rig = CameraRig::from_scenario(scenario)
             .map_err(|e| CameraPerceptionError::Camera(e.to_string()))?;
@@ -223,7 +223,7 @@ impl CameraPerception {
             msaa_samples: scenario.camera.msaa_samples,
             supersample: scenario.camera.supersample,
         };
-        let renderer = Renderer::new(options)?;
+        let renderer = Renderer::shared(options)?;
         let detector = Detector::shared(&model)?;
         let classes = detector.class_names().to_vec();
         let class_index = |name: &str| classes.iter().position(|c| c == name);

@@ -11,9 +11,13 @@
 //! thread that waits for its context longer than a few seconds, as one could behind several
 //! renders. Images do not depend on which sibling drew them.
 
-use std::sync::{Arc, MutexGuard, PoisonError};
+use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 
-use super::{Globals, Renderer, TargetCache};
+use super::{Globals, RenderError, Renderer, RendererOptions, TargetCache};
+
+/// The first renderer this process made for each set of options ([`Renderer::shared`]); never
+/// lent out, only its siblings are.
+static FIRST: Mutex<Vec<(RendererOptions, Renderer)>> = Mutex::new(Vec::new());
 
 /// A uniform buffer for a frame's [`Globals`] and its bind group in `layout`.
 pub(super) fn globals_binding(
@@ -38,6 +42,20 @@ pub(super) fn globals_binding(
 }
 
 impl Renderer {
+    /// A renderer with `options` on the process's device for them: a sibling of the first
+    /// renderer made with these options, made on the first call. A batch's camera pipeline, and
+    /// each of a suite's, draw on one device and compile the shaders once.
+    pub fn shared(options: RendererOptions) -> Result<Self, RenderError> {
+        let mut first = FIRST.lock().unwrap_or_else(PoisonError::into_inner);
+        if let Some((_, renderer)) = first.iter().find(|(o, _)| *o == options) {
+            return Ok(renderer.sibling());
+        }
+        let renderer = Self::new(options)?;
+        let sibling = renderer.sibling();
+        first.push((options, renderer));
+        Ok(sibling)
+    }
+
     /// A renderer on this one's device and with its pipelines (those built so far and those
     /// either builds later), but its own uniforms and render targets: for another thread, without
     /// a second device or a second compilation of the shaders (see the module docs).
