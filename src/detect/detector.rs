@@ -1,6 +1,7 @@
 //! The detector: an `ort` session over the shipped network plus its model card.
 
 use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 
 use image::RgbImage;
 use ndarray::{Array2, Array4};
@@ -44,6 +45,50 @@ pub struct Detector {
     card: ModelCard,
 }
 
+/// One detector shared by every thread that holds it ([`Detector::shared`]): its model card
+/// readable without waiting, its network run by one caller at a time.
+#[derive(Debug)]
+pub struct SharedDetector {
+    card: ModelCard,
+    detector: Mutex<Detector>,
+}
+
+impl SharedDetector {
+    /// The model card.
+    pub fn card(&self) -> &ModelCard {
+        &self.card
+    }
+
+    /// Class names in class-id order.
+    pub fn class_names(&self) -> &[String] {
+        &self.card.classes
+    }
+
+    /// The detector, once no other caller runs it. A caller that panicked while holding it left
+    /// nothing half-done that a later run reads (each run starts from its own input), so a
+    /// poisoned lock is taken over.
+    pub fn lock(&self) -> MutexGuard<'_, Detector> {
+        self.detector.lock().unwrap_or_else(PoisonError::into_inner)
+    }
+
+    /// [`Detector::detect`] on the shared detector.
+    pub fn detect(&self, image: &RgbImage) -> Result<Vec<Detection>, DetectError> {
+        self.lock().detect(image)
+    }
+
+    /// [`Detector::detect_binned`] on the shared detector.
+    pub fn detect_binned(
+        &self,
+        binned: &RgbImage,
+        bin: u32,
+    ) -> Result<Vec<Detection>, DetectError> {
+        self.lock().detect_binned(binned, bin)
+    }
+}
+
+/// The detectors this process has loaded, one per network ([`Detector::shared`]).
+static LOADED: Mutex<Vec<(DetectorModel, Arc<SharedDetector>)>> = Mutex::new(Vec::new());
+
 impl Detector {
     /// Loads `onnx_path` and the model card beside it (same stem, `.json`).
     pub fn load(onnx_path: &Path) -> Result<Self, DetectError> {
@@ -71,6 +116,28 @@ impl Detector {
             DetectorModel::Shipped => Self::load_default(),
             DetectorModel::File(path) => Self::load(path),
         }
+    }
+
+    /// The process's one detector for `model`: loaded on the first call, the same instance for
+    /// every later call and thread.
+    ///
+    /// Loading is most of a detector's cost (tract parses and optimises the graph: about as many
+    /// instructions as ten detections), and the runtime runs a session for one caller at a time
+    /// in any case (ort-tract holds a lock over each run), so workers sharing one detector lose
+    /// nothing to each other that a detector each would save. A file's network is read once:
+    /// a file changed after the first call is not read again by this process.
+    pub fn shared(model: &DetectorModel) -> Result<Arc<SharedDetector>, DetectError> {
+        let mut loaded = LOADED.lock().unwrap_or_else(PoisonError::into_inner);
+        if let Some((_, detector)) = loaded.iter().find(|(m, _)| m == model) {
+            return Ok(Arc::clone(detector));
+        }
+        let detector = Self::open(model)?;
+        let shared = Arc::new(SharedDetector {
+            card: detector.card.clone(),
+            detector: Mutex::new(detector),
+        });
+        loaded.push((model.clone(), Arc::clone(&shared)));
+        Ok(shared)
     }
 
     /// Class names in class-id order.
@@ -131,7 +198,54 @@ impl Detector {
     /// across classes, boxes in image pixels, best first.
     pub fn detect(&mut self, image: &RgbImage) -> Result<Vec<Detection>, DetectError> {
         let (input, letterbox) = self.preprocess(image)?;
-        let raw = self.run_raw(&input)?;
+        self.detect_input(&input, &letterbox, image.dimensions())
+    }
+
+    /// The objects in the frame that `binned` is the `bin` x `bin` binning of (block means), as
+    /// [`Self::detect`] finds them in that frame with each binned value spread over its block,
+    /// bit for bit, without spreading it: boxes in the frame's pixels.
+    ///
+    /// `bin` is the letterbox's whole factor for the frame (`crate::render::reader_bin`), so
+    /// that `binned` is the frame fitted to the input: the letterbox's block means of the frame
+    /// are `binned`'s values. A `binned` that does not fit the input unscaled is an error for
+    /// a `bin` of 2 or more; a `bin` of 1 is [`Self::detect`].
+    pub fn detect_binned(
+        &mut self,
+        binned: &RgbImage,
+        bin: u32,
+    ) -> Result<Vec<Detection>, DetectError> {
+        if bin < 2 {
+            return self.detect(binned);
+        }
+        let (input, letterbox) = self.preprocess(binned)?;
+        if letterbox.scale != 1.0 {
+            return Err(DetectError::Image(format!(
+                "a {}x{} frame binned {bin}x{bin} does not fit the {}x{} input unscaled",
+                binned.width(),
+                binned.height(),
+                self.card.input_width,
+                self.card.input_height
+            )));
+        }
+        let (w, h) = binned.dimensions();
+        let frame = (w * bin, h * bin);
+        // The frame's letterbox: the same fitted size and padding, `bin` times the pitch.
+        let letterbox = Letterbox {
+            scale: w as f32 / frame.0 as f32,
+            ..letterbox
+        };
+        self.detect_input(&input, &letterbox, frame)
+    }
+
+    /// The objects in the network input `input`, boxes mapped through `letterbox` into an image
+    /// of `(width, height)`.
+    fn detect_input(
+        &mut self,
+        input: &Array4<f32>,
+        letterbox: &Letterbox,
+        (width, height): (u32, u32),
+    ) -> Result<Vec<Detection>, DetectError> {
+        let raw = self.run_raw(input)?;
         let threshold = self.card.score_threshold;
         let candidates =
             raw.rows()
@@ -158,7 +272,7 @@ impl Detector {
                 class_id: c.class_id,
                 class_name: self.card.classes[c.class_id].clone(),
                 score: c.score,
-                box_px: letterbox.to_image(c.box_px, image.width(), image.height()),
+                box_px: letterbox.to_image(c.box_px, width, height),
             })
             .collect())
     }

@@ -20,7 +20,7 @@ mod nms;
 mod runtime;
 
 pub use detection::Detection;
-pub use detector::{Detector, DetectorModel};
+pub use detector::{Detector, DetectorModel, SharedDetector};
 pub use error::DetectError;
 pub use letterbox::Letterbox;
 pub use model_card::ModelCard;

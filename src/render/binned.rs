@@ -78,6 +78,27 @@ pub fn unbin(binned: &RgbImage, bin: u32) -> RgbImage {
     image
 }
 
+/// A frame as a sensor binning `bin` x `bin` delivers it: `binned` holds one value per block
+/// ([`Shot::render_binned_frame`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct BinnedFrame {
+    /// The binned values, `bin` times smaller than the frame each way.
+    pub binned: RgbImage,
+    /// The binning (1: `binned` is the frame itself).
+    pub bin: u32,
+}
+
+impl BinnedFrame {
+    /// The frame at its own pitch, every binned value over its block ([`unbin`]).
+    pub fn into_frame(self) -> RgbImage {
+        if self.bin < 2 {
+            self.binned
+        } else {
+            unbin(&self.binned, self.bin)
+        }
+    }
+}
+
 impl Shot {
     /// Renders the frame a look's detector reads, binned `bin` x `bin` on the sensor (see the
     /// module), from the shot's scene as already uploaded to `renderer`: the image at the
@@ -89,9 +110,26 @@ impl Shot {
         gpu: &GpuScene,
         bin: u32,
     ) -> Result<RgbImage, RenderError> {
+        self.render_binned_frame(renderer, gpu, bin)
+            .map(BinnedFrame::into_frame)
+    }
+
+    /// [`Self::render_binned`]'s frame as the binned values themselves, before they are spread
+    /// over their blocks: for a reader that takes the block means (the detector's letterbox),
+    /// which are these values.
+    pub fn render_binned_frame(
+        &self,
+        renderer: &mut Renderer,
+        gpu: &GpuScene,
+        bin: u32,
+    ) -> Result<BinnedFrame, RenderError> {
         let (w, h) = (self.exposure.width_px, self.exposure.height_px);
         if bin < 2 || w % bin != 0 || h % bin != 0 {
-            return self.render_uploaded(renderer, gpu);
+            let frame = self.render_uploaded(renderer, gpu)?;
+            return Ok(BinnedFrame {
+                binned: frame,
+                bin: 1,
+            });
         }
         let mut exposure = self.exposure.clone();
         exposure.camera = binned_calibration(&self.exposure.camera, bin);
@@ -99,7 +137,7 @@ impl Shot {
         let blur = self.scene.blur.as_ref();
         let mut binned = motion_blur::render(renderer, gpu, &exposure, blur, Renderer::render)?;
         self.sensor.apply_binned(&mut binned, bin);
-        Ok(unbin(&binned, bin))
+        Ok(BinnedFrame { binned, bin })
     }
 }
 

@@ -3,6 +3,7 @@
 
 use std::collections::BTreeMap;
 use std::ops::Range;
+use std::sync::{Arc, Mutex, PoisonError};
 
 use bytemuck::Zeroable;
 use image::{ImageBuffer, Luma, RgbImage};
@@ -23,7 +24,10 @@ use super::pipeline::{
 use super::scene::{ObjectKind, Scene, SceneObject};
 use super::targets::{TargetCache, Targets, padded_row, rgb_from_rgba};
 
+mod sibling;
+
 /// The shading pipelines for one light count.
+#[derive(Clone)]
 struct Shaded {
     /// Surfaces without stains.
     plain: wgpu::RenderPipeline,
@@ -39,14 +43,18 @@ pub struct Renderer {
     options: RendererOptions,
     module: wgpu::ShaderModule,
     layout: wgpu::PipelineLayout,
-    /// Shading pipelines by light count and samples per pixel, built when first used.
-    shaded: BTreeMap<(usize, u32), Shaded>,
+    /// Shading pipelines by light count and samples per pixel, built when first used by this
+    /// renderer or a sibling ([`Renderer::sibling`]).
+    shaded: Arc<Mutex<BTreeMap<(usize, u32), Shaded>>>,
     ids: wgpu::RenderPipeline,
+    globals_layout: wgpu::BindGroupLayout,
     globals: wgpu::Buffer,
     globals_group: wgpu::BindGroup,
     object_layout: wgpu::BindGroupLayout,
     objects: Option<(wgpu::Buffer, wgpu::BindGroup, usize)>,
     targets: TargetCache,
+    /// Held (by this renderer or a sibling) while the device is used: see [`Self::hold_device`].
+    device_lock: Arc<Mutex<()>>,
 }
 
 impl Renderer {
@@ -125,20 +133,7 @@ impl Renderer {
             immediate_size: 0,
         });
         let ids = build_pipeline(&device, &module, &layout, "fs_id", ID_FORMAT, 1, 0);
-        let globals = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("globals"),
-            size: std::mem::size_of::<Globals>() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let globals_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("globals"),
-            layout: &globals_layout,
-            entries: &[wgpu::BindGroupEntry {
-                binding: 0,
-                resource: globals.as_entire_binding(),
-            }],
-        });
+        let (globals, globals_group) = sibling::globals_binding(&device, &globals_layout);
         Ok(Self {
             device,
             queue,
@@ -146,13 +141,15 @@ impl Renderer {
             options,
             module,
             layout,
-            shaded: BTreeMap::new(),
+            shaded: Arc::default(),
             ids,
+            globals_layout,
             globals,
             globals_group,
             object_layout,
             objects: None,
             targets: TargetCache::default(),
+            device_lock: Arc::default(),
         })
     }
 
@@ -173,6 +170,7 @@ impl Renderer {
 
     /// Uploads a scene's meshes.
     pub fn upload(&self, scene: &Scene) -> GpuScene {
+        let _device = self.hold_device();
         let mut vertices = Vec::with_capacity(scene.triangle_count() * 3);
         let mut ranges = Vec::with_capacity(scene.objects.len());
         let mut bounds = Vec::with_capacity(scene.objects.len());
@@ -253,12 +251,15 @@ impl Renderer {
     ) -> Result<RgbImage, RenderError> {
         let s = self.options.supersample;
         let (w, h) = (exposure.width_px * s, exposure.height_px * s);
+        let device_lock = Arc::clone(&self.device_lock);
+        let _device = device_lock.lock().unwrap_or_else(PoisonError::into_inner);
         let visible = self.prepare(scene, exposure)?;
         let class = self
             .targets
             .ensure(&self.device, &self.info.name, (w, h, false), samples)?;
         let lights = exposure.lights.len();
-        if !self.shaded.contains_key(&(lights, samples)) {
+        let shaded = {
+            let mut built = self.shaded.lock().unwrap_or_else(PoisonError::into_inner);
             let build = |entry| {
                 build_pipeline(
                     &self.device,
@@ -270,15 +271,15 @@ impl Renderer {
                     lights,
                 )
             };
-            let shaded = Shaded {
-                plain: build("fs_main"),
-                stained: build("fs_stained"),
-            };
-            self.shaded.insert((lights, samples), shaded);
-        }
-        let (Some(targets), Some(shaded)) =
-            (self.targets.get(class), self.shaded.get(&(lights, samples)))
-        else {
+            built
+                .entry((lights, samples))
+                .or_insert_with(|| Shaded {
+                    plain: build("fs_main"),
+                    stained: build("fs_stained"),
+                })
+                .clone()
+        };
+        let Some(targets) = self.targets.get(class) else {
             return Err(RenderError::Gpu("render targets missing".into()));
         };
         let (view, resolve) = match &targets.colour_msaa {
@@ -294,7 +295,7 @@ impl Renderer {
             view,
             resolve,
         };
-        self.draw_and_read(&frame, Pipelines::Shaded(shaded), |rgba| {
+        self.draw_and_read(&frame, Pipelines::Shaded(&shaded), |rgba| {
             rgb_from_rgba(rgba, padded_row(w) as usize, (width, height), s)
         })
     }
@@ -307,6 +308,8 @@ impl Renderer {
         exposure: &Exposure,
     ) -> Result<ImageBuffer<Luma<u32>, Vec<u32>>, RenderError> {
         let (w, h) = (exposure.width_px, exposure.height_px);
+        let device_lock = Arc::clone(&self.device_lock);
+        let _device = device_lock.lock().unwrap_or_else(PoisonError::into_inner);
         let visible = self.prepare(scene, exposure)?;
         let class = self
             .targets

@@ -4,10 +4,12 @@
 //! roi_scale` times the frame's), and what those mean in the world through the calibration.
 //!
 //! Everything here works from the images and the calibration alone; the world is only rendered,
-//! never read. Renderers and detectors are expensive to make, so each worker thread takes one from
-//! a pool and puts it back: results do not depend on which instance served a trial.
+//! never read. Each worker thread takes a renderer from a pool and puts it back; the pool's
+//! renderers share one device and its compiled shaders ([`Renderer::sibling`]), and the detector is
+//! loaded once per process and shared ([`Detector::shared`]). Results do not depend on which
+//! instance served a trial.
 
-use std::sync::Mutex;
+use std::sync::{Arc, Mutex, PoisonError};
 use std::time::Instant;
 
 use image::{GrayImage, RgbImage};
@@ -17,7 +19,9 @@ use super::bottle_evidence::bottle_sightings;
 use super::bottle_fit::{BottleFitter, BottlePose};
 use super::type_reader::TypeReader;
 use crate::camera::CameraCalibration;
-use crate::detect::{Detection, Detector, DetectorModel, FOREIGN_CLASSES, is_foreign_class};
+use crate::detect::{
+    Detection, Detector, DetectorModel, FOREIGN_CLASSES, SharedDetector, is_foreign_class,
+};
 use crate::perception::calibration::{MeasureOnPlane, PlaneBore};
 use crate::perception::roundness::DEFAULT_MAX_UPR;
 use crate::perception::{Bore, BoreDetector, BoreDetectorParams};
@@ -143,10 +147,11 @@ pub struct CameraPerception {
     roi_scale: u32,
     /// The binning the detector reads the frame through ([`crate::render::reader_bin`]).
     frame_bin: u32,
-    options: RendererOptions,
     model: DetectorModel,
     renderers: Mutex<Vec<Renderer>>,
-    detectors: Mutex<Vec<Detector>>,
+    /// The renderer whose siblings join the pool when every pooled one is in use.
+    first_renderer: Mutex<Renderer>,
+    detector: Arc<SharedDetector>,
     bore_detector: BoreDetector,
     /// The scenario type each detector class names (by measurement: the one of that name, or
     /// the bulkiest, until the target is measured).
@@ -208,8 +213,9 @@ fn give_back<T>(pool: &Mutex<Vec<T>>, item: T) {
 }
 
 impl CameraPerception {
-    /// The pipeline for `scenario` with the detector's network `model`: makes one renderer and
-    /// loads the model once, so that a missing adapter or model fails here, before any trial.
+    /// The pipeline for `scenario` with the detector's network `model`: takes a renderer on the
+    /// process's device and the process's detector for `model` (making them if no pipeline has),
+    /// so that a missing adapter or model fails here, before any trial.
     pub fn new(scenario: &Scenario, model: DetectorModel) -> Result<Self, CameraPerceptionError> {
         let rig = CameraRig::from_scenario(scenario)
             .map_err(|e| CameraPerceptionError::Camera(e.to_string()))?;
@@ -217,8 +223,8 @@ impl CameraPerception {
             msaa_samples: scenario.camera.msaa_samples,
             supersample: scenario.camera.supersample,
         };
-        let renderer = Renderer::new(options)?;
-        let detector = Detector::open(&model)?;
+        let renderer = Renderer::shared(options)?;
+        let detector = Detector::shared(&model)?;
         let classes = detector.class_names().to_vec();
         let class_index = |name: &str| classes.iter().position(|c| c == name);
         let type_reader = TypeReader::new(scenario);
@@ -259,10 +265,10 @@ impl CameraPerception {
                 (rig.width_px, rig.height_px),
                 (detector.card().input_width, detector.card().input_height),
             ),
-            options,
             model,
+            first_renderer: Mutex::new(renderer.sibling()),
             renderers: Mutex::new(vec![renderer]),
-            detectors: Mutex::new(vec![detector]),
+            detector,
             bore_detector: BoreDetector::new(
                 BoreDetectorParams::default().at_scale(f64::from(scenario.camera.roi_scale)),
             ),
@@ -290,7 +296,11 @@ impl CameraPerception {
         belt_top_z_m: f64,
         rule: TargetRule,
     ) -> Result<Sighting, CameraPerceptionError> {
-        let mut renderer = take(&self.renderers, || Renderer::new(self.options))?;
+        let mut renderer = take(&self.renderers, || {
+            // The first renderer is never lent, so nothing can leave it poisoned half-used.
+            let first = self.first_renderer.lock();
+            Ok::<_, CameraPerceptionError>(first.unwrap_or_else(PoisonError::into_inner).sibling())
+        })?;
         let sighting = self.look_with(
             &mut renderer,
             scenario,
@@ -320,14 +330,12 @@ impl CameraPerception {
         let started = Instant::now();
         let shot = Shot::of_scene(scenario, &self.rig, &scenario.sensor, scene, rng);
         let gpu = renderer.upload(&shot.scene);
-        let image = shot.render_binned(renderer, &gpu, self.frame_bin)?;
+        let frame = shot.render_binned_frame(renderer, &gpu, self.frame_bin)?;
         let mut render_ms = started.elapsed().as_secs_f64() * 1e3;
 
         let started = Instant::now();
-        let mut detector = take(&self.detectors, || Detector::open(&self.model))?;
-        let detections = detector.detect(&image);
-        give_back(&self.detectors, detector);
-        let detections = detections?;
+        let detections = self.detector.detect_binned(&frame.binned, frame.bin)?;
+        let image = frame.into_frame();
         let detect_ms = started.elapsed().as_secs_f64() * 1e3;
 
         let started = Instant::now();
@@ -506,6 +514,8 @@ impl CameraPerception {
         }
         let metrology_ms = started.elapsed().as_secs_f64() * 1e3 - window_render_ms;
         render_ms += window_render_ms;
+        // The scene's buffers are freed while no sibling renderer draws (`Renderer::hold_device`).
+        drop((gpu, renderer.hold_device()));
         Ok(Sighting {
             image,
             detections,
