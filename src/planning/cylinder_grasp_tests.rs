@@ -280,40 +280,100 @@ fn a_standing_cylinder_taller_than_the_fingers_reach_is_refused() {
     assert_eq!(failure.reason, FailureReason::Unreachable);
 }
 
-#[test]
-fn a_picked_bottle_is_dropped_from_above_the_rim_of_the_bin() {
-    let planner = planner();
-    let bin = BinBody {
-        name: "waste".into(),
-        floor_center: Vector3::new(0.45, -0.05, 0.5),
-        size: [0.2, 0.2],
-        wall_height: 0.08,
+/// The carried body's pose in the world where `drop` lets it go.
+fn released(planner: &PickPlanner, picked: &CylinderPick, drop: &PlacePlan) -> Isometry3<f64> {
+    let Some(q) = drop.lower.end() else {
+        panic!("empty lowering");
     };
-    for lying in [true, false] {
-        let cylinder = bottle([0.05, -0.45], lying, 0.4);
-        let Ok(picked) = planner.plan_cylinder_pick(&cylinder, &[], &home(), 1.0) else {
-            panic!("no grasp (lying {lying})");
+    planner.world_from_base * tcp_pose(&planner.model, &q) * picked.carried.tcp_from_shape
+}
+
+#[test]
+fn a_picked_bottle_is_let_go_just_above_the_rim_over_the_bins_middle() {
+    let planner = planner();
+    let mut rng = crate::rng::SimRng::new(25);
+    for draw in 0..4 {
+        let side = rng.range(0.2, 0.3);
+        let bin = BinBody {
+            name: "waste".into(),
+            floor_center: Vector3::new(rng.range(0.4, 0.5), rng.range(-0.1, 0.05), 0.5),
+            size: [side, side],
+            wall_height: 0.08,
         };
-        let drop = planner.plan_drop(&picked, &bin);
-        let Ok(drop) = drop else {
-            panic!("no drop (lying {lying}): {drop:?}");
+        for lying in [true, false] {
+            let cylinder = bottle([0.05, -0.45], lying, rng.range(0.0, 3.0));
+            let Ok(picked) = planner.plan_cylinder_pick(&cylinder, &[], &home(), 1.0) else {
+                panic!("no grasp (lying {lying})");
+            };
+            let drop = planner.plan_drop(&picked, &bin, &[]);
+            let Ok((drop, rests)) = drop else {
+                panic!("draw {draw}: no drop (lying {lying}): {drop:?}");
+            };
+            let pose = released(&planner, &picked, &drop);
+            let carried = &picked.carried;
+            let aabb = carried
+                .shape
+                .compute_aabb(&crate::math::pose_to_physics(&pose));
+            let lowest_z = f64::from(aabb.mins.z);
+            let rim_z = bin.floor_center.z + bin.wall_height;
+            assert!(
+                lowest_z > rim_z && lowest_z < rim_z + 0.05,
+                "draw {draw}, lying {lying}: let go with its bottom at {lowest_z:.3} m, rim at \
+                 {rim_z:.3} m"
+            );
+            // An empty bin: over its middle.
+            let tcp = pose * picked.carried.tcp_from_shape.inverse();
+            let off = (tcp.translation.vector - bin.floor_center).xy().norm();
+            assert!(
+                off < 1e-3,
+                "draw {draw}, lying {lying}: {off} m off the middle"
+            );
+            // Where it will rest: on the floor, under where it was let go.
+            let rest = rests.world_from_shape.translation.vector;
+            assert!((rest.xy() - pose.translation.vector.xy()).norm() < 1e-9);
+            assert!(rest.z < pose.translation.vector.z);
+        }
+    }
+}
+
+#[test]
+fn bottles_removed_one_after_another_are_let_go_clear_of_those_already_in_the_bin() {
+    let planner = planner();
+    let mut rng = crate::rng::SimRng::new(2025);
+    for draw in 0..3 {
+        let side = rng.range(0.2, 0.3);
+        let bin = BinBody {
+            name: "waste".into(),
+            floor_center: Vector3::new(rng.range(0.4, 0.5), rng.range(-0.1, 0.05), 0.5),
+            size: [side, side],
+            wall_height: 0.08,
         };
-        let Some(q) = drop.lower.end() else {
-            panic!("empty lowering");
-        };
-        let tcp = planner.world_from_base * tcp_pose(&planner.model, &q);
-        let carried = &picked.carried;
-        let shape_in_world = tcp * carried.tcp_from_shape;
-        let aabb = carried
-            .shape
-            .compute_aabb(&crate::math::pose_to_physics(&shape_in_world));
-        let lowest_z = f64::from(aabb.mins.z);
-        let rim_z = bin.floor_center.z + bin.wall_height;
-        assert!(
-            lowest_z > rim_z && lowest_z < rim_z + 0.05,
-            "lying {lying}: let go with its bottom at {lowest_z:.3} m, rim at {rim_z:.3} m"
-        );
-        let over = (tcp.translation.vector - bin.floor_center).xy().norm();
-        assert!(over < 1e-3, "lying {lying}: {over}");
+        let mut in_bin: Vec<PerceivedObstacle> = Vec::new();
+        for k in 0..3 {
+            let cylinder = bottle([rng.range(0.0, 0.1), -0.45], false, 0.0);
+            let Ok(picked) = planner.plan_cylinder_pick(&cylinder, &[], &home(), 1.0) else {
+                panic!("no grasp");
+            };
+            let drop = planner.plan_drop(&picked, &bin, &in_bin);
+            let Ok((drop, rests)) = drop else {
+                panic!("draw {draw}: no drop for bottle {k}: {drop:?}");
+            };
+            let pose = crate::math::pose_to_physics(&released(&planner, &picked, &drop));
+            for other in &in_bin {
+                let other_pose = crate::math::pose_to_physics(&other.world_from_shape);
+                let gap = rapier3d::parry::query::distance(
+                    &pose,
+                    picked.carried.shape.as_ref(),
+                    &other_pose,
+                    other.shape.as_ref(),
+                )
+                .map_or(0.0, |d| f64::from(d.distance));
+                assert!(
+                    gap > 0.0,
+                    "draw {draw}: bottle {k} let go onto an earlier one"
+                );
+            }
+            in_bin.push(rests);
+        }
     }
 }

@@ -45,13 +45,15 @@ impl PickPlanner {
                 above_z: floor.z + bin.wall_height + LAY_APPROACH_ABOVE_RIM_M + below_tcp_m,
                 place_z: floor.z + LAY_ABOVE_FLOOR_M + below_tcp_m,
                 bin_name: &bin.name,
+                clear_of: &[],
+                yaws_deg: None,
             };
             self.place_carried(
                 carried,
                 (picked.grip_m, picked.open_m),
                 &spot,
                 &picked.pick,
-                &picked.payload,
+                &picked.payload.tool_limits(),
                 &picked.checker,
             )
         };

@@ -7,7 +7,8 @@ use rapier3d::geometry::SharedShape;
 use super::capture_robot_shapes;
 use super::grasp_search::{GraspRanking, GraspSearch};
 use super::{
-    Carried, CollisionChecker, JointTrajectory, Obstacle, Payload, RobotShape, straight_line,
+    Carried, CollisionChecker, JointTrajectory, Obstacle, Payload, RobotShape, ToolLimits,
+    straight_line,
 };
 use crate::cell::{BinBody, Cell, CellModel, SceneryBox};
 use crate::kinematics::{AnalyticIk, ArmModel, IkSolver, JointVector};
@@ -77,7 +78,18 @@ pub struct PlaceSpot<'a> {
     pub place_z: f64,
     /// The bin's name, for reports.
     pub bin_name: &'a str,
+    /// What already lies in the bin, base frame: the carried body let go at `place_z` keeps
+    /// [`RELEASE_CLEARANCE_M`] from each (empty for the part bins, whose slots are apart).
+    pub clear_of: &'a [Obstacle],
+    /// Tool yaws to try at the place, deg, in order (`None`: the right angles, then the
+    /// diagonals).
+    pub yaws_deg: Option<&'a [f64]>,
 }
+
+/// Clearance the carried body keeps, where it is let go, from what already lies in the bin, m.
+pub(super) const RELEASE_CLEARANCE_M: f64 = 0.005;
+/// Tool yaws tried at a place by default, deg.
+pub(super) const PLACE_YAWS_DEG: [f64; 8] = [0.0, 90.0, 180.0, 270.0, 45.0, 135.0, 225.0, 315.0];
 
 /// The robot and the cell as the planner sees them, fixed for a trial.
 #[derive(Debug, Clone)]
@@ -377,36 +389,46 @@ impl PickPlanner {
             above_z,
             place_z,
             bin_name: &bin.name,
+            clear_of: &[],
+            yaws_deg: None,
         };
         let grip = percept.part_outer_radius_m;
         let open = self.open_offset_m(percept);
-        self.place_carried(&carried, (grip, open), &spot, pick, payload, checker)
+        let limits = payload.tool_limits();
+        self.place_carried(&carried, (grip, open), &spot, pick, &limits, checker)
     }
 
     /// The first collision-free place of `carried`, held with the pads `grip_m` from the
     /// centre line and released to `open_m`, down to `spot`, lifted along `pick`'s lift and
-    /// carried within what the grip on `payload` holds.
+    /// carried within `grip_limits` (what the grip holds).
     pub(super) fn place_carried(
         &self,
         carried: &Carried,
         (grip, open): (f64, f64),
         spot: &PlaceSpot<'_>,
         pick: &PickPlan,
-        payload: &Payload,
+        grip_limits: &ToolLimits,
         checker: &CollisionChecker,
     ) -> Result<PlacePlan, Failure> {
         let q_start = &pick.lift_end;
-        let grip_limits = payload.tool_limits();
+        let grip_limits = *grip_limits;
         let [floor_x, floor_y] = spot.xy;
         let (above_z, place_z) = (spot.above_z, spot.place_z);
         let speed = self.speed_fraction;
         let carry = self.carry_speed_fraction;
         let mut reachable = false;
         let mut last_hit = String::new();
-        for yaw_deg in [0.0, 90.0, 180.0, 270.0, 45.0, 135.0, 225.0, 315.0] {
+        for &yaw_deg in spot.yaws_deg.unwrap_or(&PLACE_YAWS_DEG) {
             let yaw = f64::to_radians(yaw_deg);
             let above = self.base_from_tcp(Vector3::new(floor_x, floor_y, above_z), yaw, 0.0);
             let at = self.base_from_tcp(Vector3::new(floor_x, floor_y, place_z), yaw, 0.0);
+            if !released_clear(carried, &at, spot.clear_of) {
+                last_hit = format!(
+                    "the carried body would land on what is in bin {}",
+                    spot.bin_name
+                );
+                continue;
+            }
             for q_above in self.ik.solve(&above).by_distance_from(q_start) {
                 let Some(down) = straight_line(&self.ik, &above, &at, &q_above, LINE_STEP_M) else {
                     continue;
@@ -506,4 +528,15 @@ pub fn bin_slot(bin: &BinBody, placed_before: usize) -> Vector3<f64> {
         .collect();
     slots.sort_by(|a, b| a.norm().total_cmp(&b.norm()));
     slots[placed_before % slots.len()]
+}
+
+/// Whether `carried`, let go with the TCP at `base_from_tcp`, keeps [`RELEASE_CLEARANCE_M`]
+/// from each of `in_bin`.
+fn released_clear(carried: &Carried, base_from_tcp: &Isometry3<f64>, in_bin: &[Obstacle]) -> bool {
+    let pose = crate::math::pose_to_physics(&(base_from_tcp * carried.tcp_from_shape));
+    in_bin.iter().all(|o| {
+        let other = crate::math::pose_to_physics(&o.base_from_shape);
+        rapier3d::parry::query::distance(&pose, carried.shape.as_ref(), &other, o.shape.as_ref())
+            .is_ok_and(|d| f64::from(d.distance) > RELEASE_CLEARANCE_M)
+    })
 }

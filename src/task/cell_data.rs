@@ -50,6 +50,9 @@ pub struct CellData {
     pub(crate) removal_touches: Option<Vec<Option<Phase>>>,
     /// Bottles removed into the waste bin so far in the trial.
     pub(crate) removals: u32,
+    /// Where the removals let their bottles come to rest in the waste bin, as planned: the
+    /// next one is let go clear of them.
+    pub(crate) waste_contents: Vec<crate::station::PerceivedObstacle>,
     /// How the arm has moved so far, as measured in the physics.
     pub(crate) motion: MotionRecord,
     pub(crate) timing: TrialTiming,
@@ -93,6 +96,7 @@ impl CellData {
             removed: Vec::new(),
             removal_touches: None,
             removals: 0,
+            waste_contents: Vec::new(),
             motion,
             timing: TrialTiming::default(),
             measured_q,

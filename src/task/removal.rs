@@ -162,7 +162,7 @@ impl Sorter<'_> {
             return Ok(false);
         };
         let bin = &data.cell.bins[waste.0];
-        let drop = self.planner.plan_drop(&picked, bin)?;
+        let (drop, rests) = self.planner.plan_drop(&picked, bin, &data.waste_contents)?;
         let before: Vec<bool> = (0..data.cell.items.bottles().len())
             .map(|i| in_bin(model, data, i, waste))
             .collect();
@@ -195,6 +195,7 @@ impl Sorter<'_> {
             );
         }
         data.removals += removed_now;
+        data.waste_contents.push(rests);
         Ok(true)
     }
 
