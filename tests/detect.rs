@@ -112,16 +112,6 @@ impl Tally {
     }
 }
 
-fn renderer(scenario: &Scenario) -> Renderer {
-    match Renderer::new(RendererOptions {
-        msaa_samples: scenario.camera.msaa_samples,
-        supersample: scenario.camera.supersample,
-    }) {
-        Ok(r) => r,
-        Err(e) => panic!("no renderer: {e}"),
-    }
-}
-
 fn shipped() -> Detector {
     match Detector::load_default() {
         Ok(d) => d,
@@ -136,7 +126,7 @@ fn tally_renders(scenario: &Scenario, per_sensor: u64) -> Tally {
         Ok(r) => r,
         Err(e) => panic!("camera: {e}"),
     };
-    let mut renderer = renderer(scenario);
+    let mut renderer = common::renderer(scenario);
     let mut detector = shipped();
     let model = CellModel::with_urdf(scenario.clone(), None).expect("cell model");
     let mut tally = Tally::default();
@@ -224,7 +214,7 @@ fn shipped_detector_finds_family_tubes_over_the_camera_envelope() {
             Ok(r) => r,
             Err(e) => panic!("camera: {e}"),
         };
-        let mut renderer = renderer(&scenario);
+        let mut renderer = common::renderer(&scenario);
         let model = CellModel::with_urdf(scenario.clone(), None).expect("cell model");
         let model = family_model(&model).expect("family cell model");
         for index in 0..40 {

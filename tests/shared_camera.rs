@@ -12,7 +12,7 @@ use std::sync::Arc;
 use twincell::cell::CellModel;
 use twincell::detect::{Detector, DetectorModel};
 use twincell::render::binned::unbin;
-use twincell::render::{CameraRig, Renderer, RendererOptions, Shot, reader_bin};
+use twincell::render::{CameraRig, Shot, reader_bin};
 use twincell::scenario::{Scenario, SensorSection};
 
 /// Seeds no other test draws shots from.
@@ -58,21 +58,11 @@ fn shots(scenario: &Scenario, per_sensor: u64) -> Vec<Shot> {
     out
 }
 
-fn renderer(scenario: &Scenario) -> Renderer {
-    match Renderer::new(RendererOptions {
-        msaa_samples: scenario.camera.msaa_samples,
-        supersample: scenario.camera.supersample,
-    }) {
-        Ok(r) => r,
-        Err(e) => panic!("no renderer: {e}"),
-    }
-}
-
 #[test]
 fn a_sibling_renderer_draws_what_its_first_draws_on_another_thread() {
     let scenario = scenario_at(SEEDS[0], [640, 480]);
     let shots = shots(&scenario, 2);
-    let mut first = renderer(&scenario);
+    let mut first = common::renderer(&scenario);
     let mut sibling = first.sibling();
     // The sibling draws first, on its own thread, so the pipelines are built by whichever
     // renderer gets there and then used by the other.
@@ -114,7 +104,7 @@ fn the_shared_detector_is_one_instance_and_detects_as_its_own_would() {
     };
     assert_eq!(a.card(), own.card());
     let scenario = scenario_at(SEEDS[1], [640, 480]);
-    let mut renderer = renderer(&scenario);
+    let mut renderer = common::renderer(&scenario);
     let mut found = 0;
     for shot in shots(&scenario, 3) {
         let Ok(image) = shot.render(&mut renderer) else {
@@ -139,7 +129,7 @@ fn a_binned_frame_detects_as_the_frame_at_its_own_pitch() {
         let scenario = scenario_at(seed, resolution);
         let bin = reader_bin((resolution[0], resolution[1]), input);
         assert!(bin >= 2, "{resolution:?} is read through block means");
-        let mut renderer = renderer(&scenario);
+        let mut renderer = common::renderer(&scenario);
         let mut found = 0;
         for shot in shots(&scenario, 2) {
             let gpu = renderer.upload(&shot.scene);

@@ -8,6 +8,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use serde_json::Value;
+use twincell::render::{Renderer, RendererOptions};
 use twincell::scenario::Scenario;
 
 /// The binary under test: cargo's, or `TWINCELL_BIN` when set (a copy taken right after the
@@ -143,4 +144,15 @@ pub fn portable_text(name: &str) -> String {
         .collect::<Vec<_>>()
         .join("\n")
         + "\n"
+}
+
+/// A renderer with `scenario`'s camera options (MSAA, supersampling).
+pub fn renderer(scenario: &Scenario) -> Renderer {
+    match Renderer::new(RendererOptions {
+        msaa_samples: scenario.camera.msaa_samples,
+        supersample: scenario.camera.supersample,
+    }) {
+        Ok(r) => r,
+        Err(e) => panic!("no renderer: {e}"),
+    }
 }
