@@ -135,6 +135,17 @@ fn wall(part: [f64; 2], direction_rad: f64, gap_m: f64) -> PerceivedObstacle {
 }
 
 /// The grasp's TCP pose in the world.
+/// A square waste bin 0.2-0.3 m wide, 80 mm deep, drawn within the arm's reach beside the belt.
+fn waste_bin(rng: &mut crate::rng::SimRng) -> BinBody {
+    let side = rng.range(0.2, 0.3);
+    BinBody {
+        name: "waste".into(),
+        floor_center: Vector3::new(rng.range(0.4, 0.5), rng.range(-0.1, 0.05), 0.5),
+        size: [side, side],
+        wall_height: 0.08,
+    }
+}
+
 fn grasp_tcp(planner: &PickPlanner, picked: &CylinderPick) -> Isometry3<f64> {
     let Some(q) = picked.pick.lift_path.first() else {
         panic!("a pick without a grasp");
@@ -293,13 +304,7 @@ fn a_picked_bottle_is_let_go_just_above_the_rim_over_the_bins_middle() {
     let planner = planner();
     let mut rng = crate::rng::SimRng::new(25);
     for draw in 0..4 {
-        let side = rng.range(0.2, 0.3);
-        let bin = BinBody {
-            name: "waste".into(),
-            floor_center: Vector3::new(rng.range(0.4, 0.5), rng.range(-0.1, 0.05), 0.5),
-            size: [side, side],
-            wall_height: 0.08,
-        };
+        let bin = waste_bin(&mut rng);
         for lying in [true, false] {
             let cylinder = bottle([0.05, -0.45], lying, rng.range(0.0, 3.0));
             let Ok(picked) = planner.plan_cylinder_pick(&cylinder, &[], &home(), 1.0) else {
@@ -341,13 +346,7 @@ fn bottles_removed_one_after_another_are_let_go_clear_of_those_already_in_the_bi
     let planner = planner();
     let mut rng = crate::rng::SimRng::new(2025);
     for draw in 0..3 {
-        let side = rng.range(0.2, 0.3);
-        let bin = BinBody {
-            name: "waste".into(),
-            floor_center: Vector3::new(rng.range(0.4, 0.5), rng.range(-0.1, 0.05), 0.5),
-            size: [side, side],
-            wall_height: 0.08,
-        };
+        let bin = waste_bin(&mut rng);
         let mut in_bin: Vec<PerceivedObstacle> = Vec::new();
         for k in 0..3 {
             let cylinder = bottle([rng.range(0.0, 0.1), -0.45], false, 0.0);

@@ -79,7 +79,7 @@ pub struct PlaceSpot<'a> {
     /// The bin's name, for reports.
     pub bin_name: &'a str,
     /// What already lies in the bin, base frame: the carried body let go at `place_z` keeps
-    /// [`RELEASE_CLEARANCE_M`] from each (empty for the part bins, whose slots are apart).
+    /// 5 mm (`RELEASE_CLEARANCE_M`) from each (empty for the part bins, whose slots are apart).
     pub clear_of: &'a [Obstacle],
     /// Tool yaws to try at the place, deg, in order (`None`: the right angles, then the
     /// diagonals).
