@@ -205,7 +205,7 @@ impl Detector {
     /// [`Self::detect`] finds them in that frame with each binned value spread over its block,
     /// bit for bit, without spreading it: boxes in the frame's pixels.
     ///
-    /// `bin` is the letterbox's whole factor for the frame (`crate::render::reader_bin`), so
+    /// `bin` is the letterbox's whole factor for the frame (the renderer's `reader_bin`), so
     /// that `binned` is the frame fitted to the input: the letterbox's block means of the frame
     /// are `binned`'s values. A `binned` that does not fit the input unscaled is an error for
     /// a `bin` of 2 or more; a `bin` of 1 is [`Self::detect`].

@@ -17,7 +17,7 @@ use crate::camera::CameraCalibration;
 /// than its fitted size, or 1 when the fit is not such a factor (the reader then scales the
 /// frame some other way, and the frame is drawn unbinned).
 ///
-/// The fit is the letterbox's (`crate::detect::Letterbox::apply`): scale by the smaller of the
+/// The fit is the detector's letterbox: scale by the smaller of the
 /// two side ratios, sides rounded, aspect kept.
 pub fn reader_bin(frame_px: (u32, u32), reader_px: (u32, u32)) -> u32 {
     let ((w, h), (width, height)) = (frame_px, reader_px);
