@@ -9,7 +9,7 @@
 //! loaded once per process and shared ([`Detector::shared`]). Results do not depend on which
 //! instance served a trial.
 
-use std::sync::{Arc, Mutex, PoisonError};
+use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
 use image::{GrayImage, RgbImage};
@@ -149,8 +149,9 @@ pub struct CameraPerception {
     frame_bin: u32,
     model: DetectorModel,
     renderers: Mutex<Vec<Renderer>>,
-    /// The renderer whose siblings join the pool when every pooled one is in use.
-    first_renderer: Mutex<Renderer>,
+    /// The renderers' options: a look that finds every pooled renderer in use takes another on
+    /// the process's device for them ([`Renderer::shared`]).
+    options: RendererOptions,
     detector: Arc<SharedDetector>,
     bore_detector: BoreDetector,
     /// The scenario type each detector class names (by measurement: the one of that name, or
@@ -266,7 +267,7 @@ impl CameraPerception {
                 (detector.card().input_width, detector.card().input_height),
             ),
             model,
-            first_renderer: Mutex::new(renderer.sibling()),
+            options,
             renderers: Mutex::new(vec![renderer]),
             detector,
             bore_detector: BoreDetector::new(
@@ -296,11 +297,7 @@ impl CameraPerception {
         belt_top_z_m: f64,
         rule: TargetRule,
     ) -> Result<Sighting, CameraPerceptionError> {
-        let mut renderer = take(&self.renderers, || {
-            // The first renderer is never lent, so nothing can leave it poisoned half-used.
-            let first = self.first_renderer.lock();
-            Ok::<_, CameraPerceptionError>(first.unwrap_or_else(PoisonError::into_inner).sibling())
-        })?;
+        let mut renderer = take(&self.renderers, || Renderer::shared(self.options))?;
         let sighting = self.look_with(
             &mut renderer,
             scenario,
