@@ -65,10 +65,8 @@ pub(super) struct EyeWatch {
     pub(super) window: (f64, f64),
     /// The belt's holds.
     pub(super) belt: BeltHold,
-    /// Whether the arm waits over a bin (out of it) rather than at home.
+    /// Whether the arm waits over a bin (risen clear of it) rather than at home.
     pub(super) parked: bool,
-    /// Whether the parked arm has already risen clear of the bin (from there it goes home).
-    pub(super) risen: bool,
 }
 
 /// The arm moved with the belt: the plan was made for the part at `plan_x_m` along the belt.

@@ -331,7 +331,7 @@ impl Sorter<'_> {
         // lifted off; one standing on a held belt is picked as planned.
         let moving = speed > 0.0;
         watch.belt.armed = !moving;
-        (watch.parked, watch.risen) = (false, false);
+        watch.parked = false;
         let Some(bin) = bin else {
             return Err(Failure::new(FailureReason::WrongBin, "no bin named "));
         };
@@ -449,7 +449,7 @@ impl Sorter<'_> {
             // belt seldom clears what stands in it, and every pick weighed from there was
             // planned in vain. Home from up there when no part can be reached from it.
             watch.parked = true;
-            self.go_home(model, data, watch)?;
+            self.rise_over_bin(model, data, watch)?;
         } else {
             let home = (up_s, retreat.duration_s());
             let play = Play::span(Phase::Retreat, retreat, home);
@@ -458,32 +458,42 @@ impl Sorter<'_> {
         Ok(grasp_record)
     }
 
-    /// From where the arm waits over a bin (at rest): first straight up, clear of what stands
-    /// in the bin (the arm stays parked there: the next part may be reached from up there);
-    /// from there home, along the joint path the retreat's plan checked, timed from rest.
+    /// From where the arm waits over a bin (at rest), straight up clear of what stands in the
+    /// bin; it stays parked there, as the next part may be reached from up there.
+    fn rise_over_bin(
+        &mut self,
+        model: &CellModel,
+        data: &mut CellData,
+        watch: &mut EyeWatch,
+    ) -> Result<(), Failure> {
+        let mut up = vec![data.q];
+        for k in 1..=RISE_STEPS {
+            let rise = Vector3::new(0.0, 0.0, RISE_M * f64::from(k) / f64::from(RISE_STEPS));
+            let Some(q) = self.moved_ik(&data.q, &rise, &up[up.len() - 1]) else {
+                break;
+            };
+            up.push(q);
+        }
+        let motion = JointTrajectory::along(&self.planner.model, up, self.planner.speed_fraction);
+        let play = Play::span(Phase::Retreat, &motion, (0.0, motion.duration_s()));
+        self.play_watching(model, data, watch, play, None)
+    }
+
+    /// From where the parked arm waits, risen over a bin (at rest), home along the joint path
+    /// the retreat's plan checked, timed from rest.
     pub(super) fn go_home(
         &mut self,
         model: &CellModel,
         data: &mut CellData,
         watch: &mut EyeWatch,
     ) -> Result<(), Failure> {
+        watch.parked = false;
         let planner = &self.planner;
-        let speed = planner.speed_fraction;
-        let motion = if watch.risen {
-            (watch.parked, watch.risen) = (false, false);
-            JointTrajectory::through(&planner.model, &[data.q, planner.home_q_rad], speed)
-        } else {
-            watch.risen = true;
-            let mut up = vec![data.q];
-            for k in 1..=RISE_STEPS {
-                let rise = Vector3::new(0.0, 0.0, RISE_M * f64::from(k) / f64::from(RISE_STEPS));
-                let Some(q) = self.moved_ik(&data.q, &rise, &up[up.len() - 1]) else {
-                    break;
-                };
-                up.push(q);
-            }
-            JointTrajectory::along(&planner.model, up, speed)
-        };
+        let motion = JointTrajectory::through(
+            &planner.model,
+            &[data.q, planner.home_q_rad],
+            planner.speed_fraction,
+        );
         let play = Play::span(Phase::Retreat, &motion, (0.0, motion.duration_s()));
         self.play_watching(model, data, watch, play, None)
     }
