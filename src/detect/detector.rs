@@ -1,7 +1,7 @@
 //! The detector: an `ort` session over the shipped network plus its model card.
 
 use std::path::{Path, PathBuf};
-use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
+use std::sync::{Arc, Mutex, MutexGuard, OnceLock, PoisonError};
 
 use image::RgbImage;
 use ndarray::{Array2, Array4};
@@ -50,7 +50,10 @@ pub struct Detector {
 #[derive(Debug)]
 pub struct SharedDetector {
     card: ModelCard,
-    detector: Mutex<Detector>,
+    model: DetectorModel,
+    /// The network, once loaded (by the loader thread [`Detector::shared`] starts, or by the
+    /// first caller that needs it before that thread is done), or why it could not be.
+    loaded: OnceLock<Result<Mutex<Detector>, String>>,
 }
 
 impl SharedDetector {
@@ -64,16 +67,27 @@ impl SharedDetector {
         &self.card.classes
     }
 
-    /// The detector, once no other caller runs it. A caller that panicked while holding it left
-    /// nothing half-done that a later run reads (each run starts from its own input), so a
-    /// poisoned lock is taken over.
-    pub fn lock(&self) -> MutexGuard<'_, Detector> {
-        self.detector.lock().unwrap_or_else(PoisonError::into_inner)
+    /// The detector, once it is loaded and no other caller runs it. A caller that panicked
+    /// while holding it left nothing half-done that a later run reads (each run starts from its
+    /// own input), so a poisoned lock is taken over.
+    pub fn lock(&self) -> Result<MutexGuard<'_, Detector>, DetectError> {
+        let loaded = self.loaded.get_or_init(|| {
+            Detector::open(&self.model)
+                .map(Mutex::new)
+                .map_err(|e| e.to_string())
+        });
+        match loaded {
+            Ok(detector) => Ok(detector.lock().unwrap_or_else(PoisonError::into_inner)),
+            Err(reason) => Err(DetectError::Runtime {
+                context: "the shared detector".into(),
+                reason: reason.clone(),
+            }),
+        }
     }
 
     /// [`Detector::detect`] on the shared detector.
     pub fn detect(&self, image: &RgbImage) -> Result<Vec<Detection>, DetectError> {
-        self.lock().detect(image)
+        self.lock()?.detect(image)
     }
 
     /// [`Detector::detect_binned`] on the shared detector.
@@ -82,7 +96,7 @@ impl SharedDetector {
         binned: &RgbImage,
         bin: u32,
     ) -> Result<Vec<Detection>, DetectError> {
-        self.lock().detect_binned(binned, bin)
+        self.lock()?.detect_binned(binned, bin)
     }
 }
 
@@ -118,24 +132,46 @@ impl Detector {
         }
     }
 
-    /// The process's one detector for `model`: loaded on the first call, the same instance for
+    /// The process's one detector for `model`: made on the first call, the same instance for
     /// every later call and thread.
     ///
     /// Loading is most of a detector's cost (tract parses and optimises the graph: about as many
     /// instructions as ten detections), and the runtime runs a session for one caller at a time
     /// in any case (ort-tract holds a lock over each run), so workers sharing one detector lose
-    /// nothing to each other that a detector each would save. A file's network is read once:
-    /// a file changed after the first call is not read again by this process.
+    /// nothing to each other that a detector each would save. A file's network is loaded here,
+    /// so that a bad file is refused before any trial, and read once: a file changed after the
+    /// first call is not read again by this process. The shipped network (built in and checked
+    /// by the tests) is loaded on a thread of its own, so that a batch's first trials simulate
+    /// on the cores that would otherwise wait for it; a detection before it is done waits.
     pub fn shared(model: &DetectorModel) -> Result<Arc<SharedDetector>, DetectError> {
         let mut loaded = LOADED.lock().unwrap_or_else(PoisonError::into_inner);
         if let Some((_, detector)) = loaded.iter().find(|(m, _)| m == model) {
             return Ok(Arc::clone(detector));
         }
-        let detector = Self::open(model)?;
-        let shared = Arc::new(SharedDetector {
-            card: detector.card.clone(),
-            detector: Mutex::new(detector),
-        });
+        let shared = match model {
+            DetectorModel::Shipped => {
+                let card = ModelCard::from_json(SHIPPED_CARD, Path::new(SHIPPED_NAME))?;
+                let shared = Arc::new(SharedDetector {
+                    card,
+                    model: model.clone(),
+                    loaded: OnceLock::new(),
+                });
+                let loader = Arc::clone(&shared);
+                // Without a thread, the first detection loads it.
+                let _ = std::thread::Builder::new()
+                    .name("detector-load".into())
+                    .spawn(move || loader.lock().map(drop));
+                shared
+            }
+            DetectorModel::File(_) => {
+                let detector = Self::open(model)?;
+                Arc::new(SharedDetector {
+                    card: detector.card.clone(),
+                    model: model.clone(),
+                    loaded: OnceLock::from(Ok(Mutex::new(detector))),
+                })
+            }
+        };
         loaded.push((model.clone(), Arc::clone(&shared)));
         Ok(shared)
     }
