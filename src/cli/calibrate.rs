@@ -99,7 +99,7 @@ pub fn run(args: &CalibrateArgs) -> Result<ExitCode> {
     let rig = CameraRig::from_scenario(&scenario)
         .map_err(|e| BadInput(format!("{}: {e}", path.display())))?;
     let seed = args.seed.unwrap_or(scenario.seed);
-    let study = MetrologyStudy::new(rig, scenario.camera.roi_scale);
+    let study = MetrologyStudy::new(&scenario, rig);
     let jobs = args
         .jobs
         .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, usize::from))

@@ -15,6 +15,7 @@ use std::time::Instant;
 use image::{GrayImage, RgbImage};
 use nalgebra::Point3;
 
+use super::bore_floor::station_bore_params;
 use super::bottle_evidence::bottle_sightings;
 use super::bottle_fit::{BottleFitter, BottlePose};
 use super::type_reader::TypeReader;
@@ -24,7 +25,7 @@ use crate::detect::{
 };
 use crate::perception::calibration::{MeasureOnPlane, PlaneBore};
 use crate::perception::roundness::DEFAULT_MAX_UPR;
-use crate::perception::{Bore, BoreDetector, BoreDetectorParams};
+use crate::perception::{Bore, BoreDetector};
 use crate::render::{CameraRig, Renderer, RendererOptions, Scene, SensorWindow, Shot};
 use crate::rng::SimRng;
 use crate::scenario::{Scenario, TypeBy};
@@ -270,9 +271,11 @@ impl CameraPerception {
             options,
             renderers: Mutex::new(vec![renderer]),
             detector,
-            bore_detector: BoreDetector::new(
-                BoreDetectorParams::default().at_scale(f64::from(scenario.camera.roi_scale)),
-            ),
+            bore_detector: BoreDetector::new(station_bore_params(
+                scenario,
+                &rig.calibration,
+                scenario.camera.roi_scale,
+            )),
             type_of_class,
             type_reader,
             bottle_class: FOREIGN_CLASSES.iter().find_map(|name| class_index(name)),

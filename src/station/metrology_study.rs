@@ -10,9 +10,10 @@
 use image::imageops::grayscale;
 use serde::Serialize;
 
+use super::bore_floor::station_bore_params;
 use super::camera_percept::{bore_detector_at, find_in_window, measure_found, part_window};
+use crate::perception::BoreDetector;
 use crate::perception::identify::read_on_plane;
-use crate::perception::{BoreDetector, BoreDetectorParams};
 use crate::render::{CameraRig, RenderError, Renderer, Shot};
 use crate::scenario::Scenario;
 
@@ -55,15 +56,18 @@ pub struct MetrologyStudy {
 }
 
 impl MetrologyStudy {
-    /// The metrology of camera `rig`, whose sensor reads areas of interest at `roi_scale`
-    /// pixels per frame pixel.
-    pub fn new(rig: CameraRig, roi_scale: u32) -> Self {
+    /// The metrology of `scenario`'s camera `rig`, whose sensor reads areas of interest at the
+    /// scenario's `roi_scale` pixels a frame pixel, with the closed loop's bore finder.
+    pub fn new(scenario: &Scenario, rig: CameraRig) -> Self {
+        let roi_scale = scenario.camera.roi_scale;
         Self {
+            bore_detector: BoreDetector::new(station_bore_params(
+                scenario,
+                &rig.calibration,
+                roi_scale,
+            )),
             rig,
             roi_scale,
-            bore_detector: BoreDetector::new(
-                BoreDetectorParams::default().at_scale(f64::from(roi_scale)),
-            ),
         }
     }
 

@@ -7,6 +7,7 @@
 //! world.
 
 pub mod belt_frame;
+mod bore_floor;
 mod bottle_evidence;
 pub mod bottle_fit;
 pub mod camera_percept;
@@ -20,6 +21,7 @@ mod silhouette;
 pub mod type_reader;
 
 pub use belt_frame::{BeltFrame, SeenItem, TubeEnvelope};
+pub use bore_floor::{imaged_radius_px, station_bore_params};
 pub use bottle_evidence::{Evidence, MIN_SUPPORT, bottle_sightings};
 pub use bottle_fit::{BottleFitter, BottlePose};
 pub use camera_percept::{
