@@ -1,14 +1,17 @@
-//! The arm and gripper in the physics world: loaded from URDF as a multibody with joint motors.
+//! The arm and gripper in the physics world, loaded from URDF: the arm's links kinematic bodies
+//! placed by their servos' response (`sim::servo`), the fingers dynamic bodies on prismatic
+//! impulse joints with force-limited motors.
 
 use std::collections::BTreeMap;
 use std::path::Path;
 
 use nalgebra::Isometry3;
 use rapier3d::prelude::*;
-use rapier3d_urdf::{UrdfLoaderOptions, UrdfMultibodyOptions, UrdfRobot};
+use rapier3d_urdf::{UrdfJoint, UrdfLoaderOptions, UrdfRobot};
 
 use super::urdf_graph::{tree_error, value_error};
 use super::weld::{WeldedRobot, weld_fixed_links};
+use super::servo::{Finger, Jaws, ServoDrive, ServoJoint};
 use super::{SimError, Tag, World};
 use crate::kinematics::{BUILTIN_URDF, BUILTIN_URDF_PATH, DOF, JointVector, UrdfArm};
 use crate::math::{pose_from_physics, pose_to_physics};
@@ -19,10 +22,6 @@ pub const FINGER_JOINTS: [&str; 2] = ["finger_left_joint", "finger_right_joint"]
 pub const FINGER_LINKS: [&str; 2] = ["finger_left_Link", "finger_right_Link"];
 /// Jaw travel speed, m/s per jaw.
 pub const JAW_SPEED_M_S: f64 = 0.1;
-/// Index of a revolute joint's angle in a multibody joint's coordinates.
-const REVOLUTE_COORD: usize = 3;
-/// Index of a prismatic joint's offset in a multibody joint's coordinates.
-const PRISMATIC_COORD: usize = 0;
 
 /// Servo gains of the joint position controllers (acceleration-based, per unit inertia).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -58,9 +57,12 @@ pub struct ArmLink {
 /// Handles of the arm in a [`World`].
 #[derive(Debug, Clone)]
 pub struct SimArm {
-    joints: [MultibodyJointHandle; DOF],
-    fingers: [MultibodyJointHandle; 2],
-    efforts: [f32; DOF],
+    /// The servo drive's index of the link each arm joint moves.
+    joints: [usize; DOF],
+    /// The joint of the right finger on the left one: its motor is the squeeze.
+    gap_joint: ImpulseJointHandle,
+    /// The fingers on the gripper as the URDF has them, left then right.
+    jaws: [Finger; 2],
     flange_body: RigidBodyHandle,
     links: Vec<ArmLink>,
     world_from_base: Isometry3<f64>,
@@ -150,53 +152,135 @@ impl SimArm {
             .iter()
             .map(|j| description.joints[j.urdf_joint_index].name.clone())
             .collect();
-        let efforts_by_name: Vec<f32> = robot
-            .joints
-            .iter()
-            .map(|j| description.joints[j.urdf_joint_index].limit.effort as f32)
+        let prismatic = |j: &UrdfJoint| j.joint.locked_axes == JointAxesMask::LOCKED_PRISMATIC_AXES;
+        // Links on a prismatic joint (the fingers) stay dynamic; the rest are placed by the
+        // servo drive.
+        let dynamic: Vec<bool> = (0..robot.links.len())
+            .map(|i| robot.joints.iter().any(|j| j.link2 == i && prismatic(j)))
             .collect();
         let physics = &mut world.physics;
-        // Self-contacts off: neighbouring links overlap at their joints by design; the planner
-        // keeps the arm clear of itself.
-        let handles = robot.insert_using_multibody_joints(
-            &mut physics.bodies,
-            &mut physics.colliders,
-            &mut physics.multibody_joints,
-            UrdfMultibodyOptions::DISABLE_SELF_CONTACTS,
-        );
-        let find_joint = |name: &str| -> Result<(MultibodyJointHandle, f32), SimError> {
-            let index = joint_names.iter().position(|n| n == name);
-            let handle =
-                index.and_then(|i| handles.joints[i].joint.map(|h| (h, efforts_by_name[i])));
-            handle.ok_or_else(|| SimError::MissingJoint {
-                joint: name.to_string(),
-                path: path.to_path_buf(),
-            })
+        let mut bodies = Vec::with_capacity(robot.links.len());
+        let mut link_colliders = Vec::with_capacity(robot.links.len());
+        for (link, &dynamic) in robot.links.into_iter().zip(&dynamic) {
+            let mut body = link.body;
+            if !dynamic {
+                body.set_body_type(RigidBodyType::KinematicPositionBased, false);
+            }
+            let handle = physics.bodies.insert(body);
+            let colliders: Vec<ColliderHandle> = link
+                .colliders
+                .into_iter()
+                .map(|c| {
+                    physics
+                        .colliders
+                        .insert_with_parent(c.collider, handle, &mut physics.bodies)
+                })
+                .collect();
+            if dynamic && let Ok(m) = std::env::var("H29_FMASS") {
+                if let Some(b) = physics.bodies.get_mut(handle) {
+                    b.set_additional_mass(m.parse().unwrap_or(0.08), true);
+                }
+            }
+            bodies.push(handle);
+            link_colliders.push(colliders);
+        }
+        let poses: Vec<Pose> = bodies
+            .iter()
+            .map(|b| physics.bodies.get(*b).map_or(Pose::IDENTITY, |b| *b.position()))
+            .collect();
+        // Revolute joints go to the servo drive by the link they move; the fingers' prismatic
+        // joints make the jaws (`sim::servo::Jaws`).
+        let mut servos = Vec::new();
+        let mut joint_links: Vec<Option<usize>> = vec![None; robot.joints.len()];
+        for (i, joint) in robot.joints.iter().enumerate() {
+            if joint.joint.locked_axes == JointAxesMask::LOCKED_REVOLUTE_AXES {
+                let link = (joint.link1, joint.link2);
+                servos.push(ServoJoint::new(link, bodies[joint.link2], &joint.joint));
+                joint_links[i] = Some(joint.link2);
+            }
+        }
+        let index_of = |name: &str| -> Result<usize, SimError> {
+            joint_names
+                .iter()
+                .position(|n| n == name)
+                .ok_or_else(|| SimError::MissingJoint {
+                    joint: name.to_string(),
+                    path: path.to_path_buf(),
+                })
         };
-        let mut joints = [MultibodyJointHandle::invalid(); DOF];
-        let mut efforts = [0.0f32; DOF];
+        let missing = |name: &str| SimError::MissingJoint {
+            joint: name.to_string(),
+            path: path.to_path_buf(),
+        };
+        let mut joints = [0usize; DOF];
         for (i, name) in kinematics.joints.iter().enumerate() {
-            (joints[i], efforts[i]) = find_joint(name)?;
+            joints[i] = joint_links[index_of(name)?].ok_or_else(|| missing(name))?;
         }
-        let mut fingers = [MultibodyJointHandle::invalid(); 2];
-        for (i, name) in FINGER_JOINTS.iter().enumerate() {
-            fingers[i] = find_joint(name)?.0;
+        let mut finger_joints = Vec::with_capacity(2);
+        for name in FINGER_JOINTS {
+            let joint = &robot.joints[index_of(name)?];
+            if !prismatic(joint) {
+                return Err(missing(name));
+            }
+            finger_joints.push(joint);
         }
-        couple_fingers(world, &fingers);
+        let (left, right) = (finger_joints[0], finger_joints[1]);
+        let finger = |j: &UrdfJoint| Finger {
+            host: bodies[j.link1],
+            body: bodies[j.link2],
+            frame1: j.joint.local_frame1,
+            frame2: j.joint.local_frame2,
+        };
+        let jaw_fingers = [finger(left), finger(right)];
+        let mut left_data = left.joint;
+        left_data.set_contacts_enabled(false);
+        // The right finger slides on the left one, along the same line: its offset on the
+        // gripper plus the left's is the gap (the fingers' axes are opposite).
+        let mut gap_data = right.joint;
+        gap_data.set_contacts_enabled(false);
+        gap_data.local_frame1 = left.joint.local_frame2
+            * left.joint.local_frame1.inverse()
+            * right.joint.local_frame1;
+        let range = |j: &UrdfJoint| j.joint.limits(JointAxis::LinX).map(|l| [l.min, l.max]);
+        if let (Some(l), Some(r)) = (range(left), range(right)) {
+            gap_data.set_limits(JointAxis::LinX, [l[0] + r[0], l[1] + r[1]]);
+        }
+        let left_joint = physics.impulse_joints.insert(
+            bodies[left.link1],
+            bodies[left.link2],
+            left_data,
+            true,
+        );
+        let gap_joint = physics.impulse_joints.insert(
+            bodies[left.link2],
+            bodies[right.link2],
+            gap_data,
+            true,
+        );
+        let mut drive = ServoDrive::new(servos, poses);
+        drive.jaws = Some(Jaws {
+            fingers: jaw_fingers,
+            left_joint,
+        });
+        world.drive = Some(drive);
         // Every URDF link with a body or a collider, in the file's order; a welded link names
         // its host's body and its own colliders.
         let mut links: Vec<(usize, ArmLink)> = Vec::new();
-        for ((own, handle), sources) in own_links.iter().zip(&handles.links).zip(&collider_sources)
+        for (((own, body), colliders), sources) in own_links
+            .iter()
+            .zip(&bodies)
+            .zip(&link_colliders)
+            .zip(&collider_sources)
         {
             let mut by_source: BTreeMap<usize, Vec<ColliderHandle>> = BTreeMap::new();
             by_source.entry(*own).or_default();
-            for (collider, source) in handle.colliders.iter().zip(sources) {
-                by_source.entry(*source).or_default().push(collider.handle);
+            for (collider, source) in colliders.iter().zip(sources) {
+                by_source.entry(*source).or_default().push(*collider);
             }
             links.extend(by_source.into_iter().map(|(source, colliders)| {
                 let link = ArmLink {
                     name: description.links[source].name.clone(),
-                    body: handle.body,
+                    body: *body,
                     colliders,
                 };
                 (source, link)
@@ -216,8 +300,8 @@ impl SimArm {
         };
         let arm = Self {
             joints,
-            fingers,
-            efforts,
+            gap_joint,
+            jaws: jaw_fingers,
             flange_body,
             links,
             world_from_base,
@@ -265,78 +349,80 @@ impl SimArm {
     /// Measured joint angles (controller convention).
     pub fn joint_positions(&self, world: &World) -> JointVector {
         self.joints
-            .map(|handle| f64::from(joint_coord(world, handle, REVOLUTE_COORD).unwrap_or(0.0)))
+            .map(|link| world.drive.as_ref().and_then(|d| d.state(link)).map_or(0.0, |s| s.0))
+    }
+
+    /// Joint velocities, rad/s.
+    pub fn joint_velocities(&self, world: &World) -> JointVector {
+        self.joints
+            .map(|link| world.drive.as_ref().and_then(|d| d.state(link)).map_or(0.0, |s| s.1))
     }
 
     /// Measured finger positions: each pad's distance from the gripper's centre line.
     pub fn finger_positions_m(&self, world: &World) -> [f64; 2] {
-        self.fingers
-            .map(|handle| f64::from(joint_coord(world, handle, PRISMATIC_COORD).unwrap_or(0.0)))
+        self.jaws.map(|finger| finger.offset(&world.physics.bodies))
     }
 
     /// Commands the joint servos to a position and feed-forward velocity.
     pub fn command(&self, world: &mut World, q: &JointVector, qd: &JointVector) {
-        let gains = self.gains;
-        for (i, handle) in self.joints.iter().enumerate() {
-            with_joint_mut(world, *handle, |joint| {
-                joint.set_motor(
-                    JointAxis::AngX,
-                    q[i] as f32,
-                    qd[i] as f32,
-                    gains.stiffness,
-                    gains.damping,
-                );
-                joint.set_motor_max_force(JointAxis::AngX, self.efforts[i]);
-            });
+        let gains = (
+            f64::from(self.gains.stiffness),
+            f64::from(self.gains.damping),
+        );
+        let Some(drive) = world.drive.as_mut() else {
+            return;
+        };
+        for (i, &link) in self.joints.iter().enumerate() {
+            // Rounded as rapier's motor held its targets, so the response is the same.
+            let (q, qd) = (f64::from(q[i] as f32), f64::from(qd[i] as f32));
+            drive.command(link, q, qd, gains);
         }
     }
 
     /// Drives both fingers towards `pad_offset_m` from the centre line, pushing with at most
     /// `max_force_n` each: a force-limited parallel gripper.
     pub fn command_gripper(&self, world: &mut World, pad_offset_m: f64, max_force_n: f64) {
-        for handle in &self.fingers {
-            with_joint_mut(world, *handle, |joint| {
-                // Force-based so that the limit is in newtons: a stiff, well-damped servo that
-                // saturates at the force limit when the jaws are blocked by a part.
-                joint.set_motor_model(JointAxis::LinX, MotorModel::ForceBased);
-                joint.set_motor(JointAxis::LinX, pad_offset_m as f32, 0.0, 4_000.0, 120.0);
-                joint.set_motor_max_force(JointAxis::LinX, max_force_n as f32);
-            });
+        if let Some(joint) = world.physics.impulse_joints.get_mut(self.gap_joint, false) {
+            let data = &mut joint.data;
+            // Force-based so that the limit is in newtons: a stiff, well-damped servo that
+            // saturates at the force limit when the jaws are blocked by a part. On the gap, the
+            // motor of the fingers' relative motion: each finger's 4000 N/m and 120 N s/m on its
+            // offset are half that on the gap (twice the offset), over half the mass.
+            data.set_motor_model(JointAxis::LinX, MotorModel::ForceBased);
+            let scale: f32 = std::env::var("H29_FMASS").ok().and_then(|m| m.parse().ok()).map_or(1.0, |m: f32| m / 0.08);
+            data.set_motor(
+                JointAxis::LinX,
+                (2.0 * pad_offset_m) as f32,
+                0.0,
+                2_000.0 * scale,
+                60.0 * scale,
+            );
+            data.set_motor_max_force(JointAxis::LinX, max_force_n as f32);
         }
     }
 
     /// Places the arm at rest at `q` with the finger pads at `pad_offset_m`, as a trial's
     /// initial state (this sets the robot's state; it never moves other bodies).
     pub fn reset_to(&self, world: &mut World, q: &JointVector, pad_offset_m: f64) {
-        let targets: Vec<(usize, f32, usize)> = self
-            .joints
-            .iter()
-            .zip(q)
-            .map(|(handle, &value)| (*handle, value as f32, REVOLUTE_COORD))
-            .chain(
-                self.fingers
-                    .iter()
-                    .map(|handle| (*handle, pad_offset_m as f32, PRISMATIC_COORD)),
-            )
-            .filter_map(|(handle, value, axis)| {
-                let (_, link_id) = world.physics.multibody_joints.get(handle)?;
-                Some((link_id, value, axis))
-            })
-            .collect();
-        let physics = &mut world.physics;
-        let Some((multibody, _)) = physics.multibody_joints.get_mut(self.joints[0]) else {
+        let Some(drive) = world.drive.as_mut() else {
             return;
         };
-        let mut displacement = vec![0.0f32; multibody.ndofs()];
-        for (link_id, value, axis) in targets {
-            if let Some(link) = multibody.link(link_id) {
-                displacement[link.assembly_id()] = value - link.joint().coords()[axis];
+        for (i, &link) in self.joints.iter().enumerate() {
+            drive.reset(link, f64::from(q[i] as f32));
+        }
+        drive.forward_kinematics();
+        let physics = &mut world.physics;
+        drive.place(physics, true);
+        for finger in &self.jaws {
+            let Some(pose) = finger.pose_at(&physics.bodies, pad_offset_m) else {
+                continue;
+            };
+            if let Some(body) = physics.bodies.get_mut(finger.body) {
+                body.set_position(pose, true);
+                body.set_linvel(Vector::ZERO, true);
+                body.set_angvel(Vector::ZERO, true);
             }
         }
-        multibody.apply_displacements(&displacement);
-        multibody.generalized_velocity_mut().fill(0.0);
-        multibody.forward_kinematics(&physics.bodies, true);
-        multibody.update_rigid_bodies(&mut physics.bodies, false);
         self.command(world, q, &[0.0; DOF]);
         self.command_gripper(world, pad_offset_m, 40.0);
     }
@@ -349,47 +435,6 @@ impl SimArm {
             .get(self.flange_body)
             .map(|body| pose_from_physics(body.position()))
             .unwrap_or_else(Isometry3::identity)
-    }
-}
-
-/// Couples the two finger joints so they open and close together, as a parallel gripper's jaws
-/// do through their rack and pinion.
-fn couple_fingers(world: &mut World, fingers: &[MultibodyJointHandle; 2]) {
-    let joints = &mut world.physics.multibody_joints;
-    let (Some((_, left)), Some((_, right))) = (joints.get(fingers[0]), joints.get(fingers[1]))
-    else {
-        return;
-    };
-    if let Some((multibody, _)) = joints.get_mut(fingers[0]) {
-        multibody.add_dof_coupling(MultibodyDofCoupling {
-            link1: left,
-            dof1: 0,
-            axis1: PRISMATIC_COORD,
-            link2: right,
-            dof2: 0,
-            axis2: PRISMATIC_COORD,
-            coeff: 1.0,
-            offset: 0.0,
-        });
-    }
-}
-
-/// Coordinate `axis` of a multibody joint, if the joint exists.
-fn joint_coord(world: &World, handle: MultibodyJointHandle, axis: usize) -> Option<f32> {
-    let (multibody, link) = world.physics.multibody_joints.get(handle)?;
-    Some(multibody.link(link)?.joint().coords()[axis])
-}
-
-/// Applies `edit` to a multibody joint's description, if the joint exists.
-fn with_joint_mut(
-    world: &mut World,
-    handle: MultibodyJointHandle,
-    edit: impl FnOnce(&mut GenericJoint),
-) {
-    if let Some((multibody, link)) = world.physics.multibody_joints.get_mut(handle)
-        && let Some(link) = multibody.link_mut(link)
-    {
-        edit(&mut link.joint.data);
     }
 }
 

@@ -52,12 +52,16 @@ pub mod groups {
         )
     }
 
-    /// The robot: everything but the out-of-reach scenery and the photo-eye (an arm passing
-    /// through the beam is not a part arriving).
+    /// The robot: everything but the out-of-reach scenery, the photo-eye (an arm passing
+    /// through the beam is not a part arriving) and itself (its links overlap at their joints by
+    /// design, and the planner keeps it clear of itself).
     pub const fn robot() -> InteractionGroups {
         InteractionGroups::new(
             ROBOT,
-            Group::ALL.difference(OUT_OF_REACH).difference(EYE),
+            Group::ALL
+                .difference(OUT_OF_REACH)
+                .difference(EYE)
+                .difference(ROBOT),
             InteractionTestMode::And,
         )
     }

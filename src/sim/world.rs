@@ -3,18 +3,15 @@
 use rapier3d::prelude::*;
 
 use super::Tag;
-use super::idle::IdleArm;
-use super::limits::LimitGate;
+use super::servo::ServoDrive;
 use crate::scenario::PhysicsSection;
 
 /// Solver substeps while no robot collider is within [`CONTACT_MARGIN_M`] of a moving body: the
 /// arm moves free or stands still, and the scene's contacts are parts and bottles at rest on
 /// the belt or in a bin, or riding it.
 ///
-/// Each substep recomputes the arm's multibody mass matrix, its LU factors and the joint
-/// motors' constraints: two thirds of a free step's instructions at 4 substeps (callgrind).
 /// Parts and bottles resting on the belt or in a bin need no more than one; the arm's servos
-/// (1000 rad/s, critically damped, integrated implicitly by rapier) need two once it moves at
+/// (1000 rad/s, critically damped, integrated implicitly per substep: `sim::servo`) need two once it moves at
 /// its published limits: with one, a joint ending an acceleration ramp overshot its velocity
 /// limit by up to 20 % (measured joint speed over 50 trials of paper_50 in camera mode, seeds
 /// 731 and 1-5), with two by up to 2 % at 0.92 of the limits and not at all at 0.9 (the
@@ -79,8 +76,8 @@ pub struct World {
     pub physics: PhysicsWorld,
     params: WorldParams,
     steps: u64,
-    idle: IdleArm,
-    limits: LimitGate,
+    /// The arm's joints, integrated by their servo law and placing the arm's links.
+    pub(super) drive: Option<ServoDrive>,
 }
 
 impl World {
@@ -112,27 +109,8 @@ impl World {
             physics,
             params,
             steps: 0,
-            idle: IdleArm::new(true),
-            limits: LimitGate::new(true),
+            drive: None,
         }
-    }
-
-    /// Whether the arm's multibody sleeps while it holds still with nothing near it (on by
-    /// default; see [`crate::sim::IDLE_STEPS`]). Turning it off wakes the arm at the next step.
-    pub fn set_idle_sleep(&mut self, enabled: bool) {
-        self.idle.set_enabled(enabled);
-    }
-
-    /// Whether multibody joint limits are handed to the solver only near a limit (on by
-    /// default; see [`crate::sim::LIMIT_MARGIN_RAD`]). Off, every declared limit is on in every
-    /// step, as rapier has it.
-    pub fn set_limit_gating(&mut self, enabled: bool) {
-        self.limits.enabled = enabled;
-    }
-
-    /// Whether the arm's multibody sleeps now.
-    pub fn arm_asleep(&self) -> bool {
-        self.idle.asleep()
     }
 
     /// The parameters the world was built with.
@@ -175,17 +153,39 @@ impl World {
     /// solver substeps while a robot collider is near a moving body, fewer while none is (see
     /// [`FREE_SOLVER_ITERATIONS`] for why).
     ///
-    /// While the arm holds still, its commands unchanged and no moving body within rapier's
-    /// contact prediction of it, its multibody sleeps: its servos would only hold it where it
-    /// is, and its mass matrix is most of a step's cost. A new command or a body coming near
-    /// wakes it before the step that needs it.
+    /// The arm's joints are integrated first, substep by substep, and its links handed their
+    /// poses at the step's end (`sim::servo`).
     pub fn step_with_hooks(&mut self, hooks: &dyn PhysicsHooks) {
-        let clear = !self.robot_contacts_moving_body(f32::INFINITY);
-        self.idle.update(&mut self.physics, clear);
-        self.limits
-            .update(&mut self.physics.multibody_joints, self.params.dt_s as f32);
-        self.physics.integration_parameters.num_solver_iterations = self.next_solver_iterations();
+        let substeps = self.next_solver_iterations();
+        if let Some(drive) = self.drive.as_mut() {
+            drive.advance(self.params.dt_s, substeps);
+            drive.place(&mut self.physics, false);
+        }
+        self.physics.integration_parameters.num_solver_iterations = substeps;
+        if let Ok(n) = std::env::var("H29_PGS") {
+            self.physics.integration_parameters.num_internal_pgs_iterations = n.parse().unwrap_or(1);
+        }
         self.physics.step_with_events(hooks, &());
+        if std::env::var("H29_DBG").is_ok()
+            && let Some(jaws) = self.drive.as_ref().and_then(|d| d.jaws.as_ref())
+        {
+            let mut worst = [0.0f32; 2];
+            for (i, f) in jaws.fingers.iter().enumerate() {
+                let off = f.offset(&self.physics.bodies);
+                if let (Some(p), Some(b)) = (f.pose_at(&self.physics.bodies, off), self.physics.bodies.get(f.body)) {
+                    worst[i] = (p.translation - b.position().translation).length();
+                }
+            }
+            let o = jaws.offsets(&self.physics.bodies);
+            if self.steps < 3 {
+                for (h, j) in self.physics.impulse_joints.iter() {
+                    let (Some(b1), Some(b2)) = (self.physics.bodies.get(j.body1()), self.physics.bodies.get(j.body2())) else { continue };
+                    let rel = (b1.position() * j.data.local_frame1).inv_mul(&(b2.position() * j.data.local_frame2));
+                    eprintln!("DBGJ {:?} {:?} {:?}", h, rel.translation, rel.rotation);
+                }
+            }
+            eprintln!("DBG {} {:.6} {:.6} {:.5} {:.5}", self.steps, worst[0], worst[1], o[0], o[1]);
+        }
         self.steps += 1;
     }
 
@@ -287,11 +287,9 @@ mod tests {
         crate::scenario::RobotSection::default().home_q_rad
     }
 
-    /// The arm at home under gravity with its jaws open as the cell puts them, held; with the
-    /// idle sleep on or off.
-    fn held_arm(sleep: bool) -> (World, SimArm) {
+    /// The arm at home under gravity with its jaws open as the cell puts them, held.
+    fn held_arm() -> (World, SimArm) {
         let mut world = World::new(WorldParams::default());
-        world.set_idle_sleep(sleep);
         let arm = match SimArm::load_builtin(&mut world, Isometry3::translation(0.0, 0.0, 0.6)) {
             Ok(arm) => arm,
             Err(e) => panic!("{e}"),
@@ -302,92 +300,63 @@ mod tests {
     }
 
     #[test]
-    fn an_idle_arm_sleeps_and_wakes_where_it_would_have_been() {
-        let (mut asleep, arm) = held_arm(true);
-        let (mut awake, _) = held_arm(false);
-        let q = home_q();
-        let bits = |world: &World| {
-            let q = arm.joint_positions(world);
-            let pads = arm.finger_positions_m(world);
-            (q.map(f64::to_bits), pads.map(f64::to_bits))
-        };
-        let mut slept = 0;
-        for _ in 0..240 {
-            for world in [&mut asleep, &mut awake] {
-                arm.command(world, &q, &[0.0; 6]);
-                arm.command_gripper(world, 0.045, 40.0);
-                world.step();
+    fn the_links_follow_the_joints_and_the_jaws_their_command_under_gravity() {
+        let (mut world, arm) = held_arm();
+        let start = home_q();
+        let kinematics = arm.kinematics().model.clone();
+        // Each joint along a smooth 0.2 rad move over a second, then held; the jaws close to
+        // 20 mm.
+        let steps = 360;
+        for step in 0..steps {
+            let t = ((step + 1) as f64 * world.params().dt_s).min(1.0);
+            let s = 0.5 - 0.5 * (std::f64::consts::PI * t).cos();
+            let ds = 0.5 * std::f64::consts::PI * (std::f64::consts::PI * t).sin();
+            let sign = |i: usize| if i % 2 == 0 { 1.0 } else { -1.0 };
+            let q: [f64; 6] = std::array::from_fn(|i| start[i] + 0.2 * sign(i) * s);
+            let qd: [f64; 6] = std::array::from_fn(|i| 0.2 * sign(i) * ds);
+            arm.command(&mut world, &q, &qd);
+            arm.command_gripper(&mut world, 0.02, 40.0);
+            world.step();
+            let measured = arm.joint_positions(&world);
+            for i in 0..6 {
+                assert!((measured[i] - q[i]).abs() < 2e-3, "step {step} joint {i}");
             }
-            slept += usize::from(asleep.arm_asleep());
-            assert!(!awake.arm_asleep());
-            assert_eq!(bits(&asleep), bits(&awake));
+            // The flange body is where forward kinematics puts it for the measured joints.
+            let flange = crate::kinematics::flange_pose(&kinematics, &measured);
+            let body = arm.flange_in_world(&world);
+            let expected = Isometry3::translation(0.0, 0.0, 0.6) * flange;
+            let error = (body.translation.vector - expected.translation.vector).norm();
+            assert!(error < 1e-4, "step {step}: flange {error} m off");
         }
-        assert!(slept > 120, "the held arm slept {slept} of 240 steps");
-        // A new command wakes it at once, and it moves as the arm that never slept.
-        let mut target = q;
-        target[0] += 0.2;
-        for step in 0..120 {
-            for world in [&mut asleep, &mut awake] {
-                arm.command(world, &target, &[0.0; 6]);
-                arm.command_gripper(world, 0.02, 40.0);
-                world.step();
-            }
-            assert!(!asleep.arm_asleep() || step > 12, "asleep at step {step}");
-            assert_eq!(bits(&asleep), bits(&awake), "step {step}");
+        let end: [f64; 6] = std::array::from_fn(|i| start[i] + 0.2 * [1.0, -1.0][i % 2]);
+        let measured = arm.joint_positions(&world);
+        for i in 0..6 {
+            assert!((measured[i] - end[i]).abs() < 1e-6, "joint {i} settled off");
         }
-        let moved = arm.joint_positions(&asleep)[0] - q[0];
-        assert!(moved > 0.1, "the woken arm moved {moved} rad");
-    }
-
-    /// Limit axes declared to rapier now, over every multibody link.
-    fn limits_on(world: &World) -> usize {
-        world
-            .physics
-            .multibody_joints
-            .multibodies()
-            .flat_map(|m| m.links())
-            .map(|l| l.joint().data.limit_axes.bits().count_ones() as usize)
-            .sum()
+        for pad in arm.finger_positions_m(&world) {
+            assert!((pad - 0.02).abs() < 5e-4, "a pad at {pad} m");
+        }
     }
 
     #[test]
-    fn a_gated_limit_stops_a_joint_as_the_limit_always_on_does() {
-        let (mut gated, arm) = held_arm(false);
-        let (mut always, _) = held_arm(false);
-        always.set_limit_gating(false);
+    fn a_joint_driven_past_its_limit_stops_there() {
+        let (mut world, arm) = held_arm();
         let start = home_q();
         let upper = 3.04;
         // The wrist joint driven at 2 rad/s to 0.3 rad past its upper limit.
-        let mut seen_off = false;
-        let mut seen_on = false;
         for step in 0..480 {
-            let t = (step + 1) as f64 * gated.params().dt_s;
+            let t = (step + 1) as f64 * world.params().dt_s;
             let mut q = start;
             q[5] = (start[5] + 2.0 * t).min(upper + 0.3);
             let mut qd = [0.0; 6];
             qd[5] = if q[5] < upper + 0.3 { 2.0 } else { 0.0 };
-            for world in [&mut gated, &mut always] {
-                arm.command(world, &q, &qd);
-                arm.command_gripper(world, 0.02, 40.0);
-                world.step();
-            }
-            let bits = |world: &World| arm.joint_positions(world).map(f64::to_bits);
-            assert_eq!(bits(&gated), bits(&always), "step {step}");
-            // The jaws at 20 mm are far from theirs (4-50 mm): only the wrist's can be on.
-            let wrist = arm.joint_positions(&gated)[5];
-            seen_off |= limits_on(&gated) == 0 && wrist < upper - 0.2;
-            seen_on |= limits_on(&gated) == 1 && wrist > upper - 0.1;
+            arm.command(&mut world, &q, &qd);
+            arm.command_gripper(&mut world, 0.02, 40.0);
+            world.step();
+            assert!(arm.joint_positions(&world)[5] <= upper + 1e-6, "step {step}");
         }
-        assert!(seen_off && seen_on, "off {seen_off}, on {seen_on}");
-        assert_eq!(limits_on(&always), 8);
-        // The limit is soft (rapier's joint softness against a servo with the wrist's whole
-        // effort): it holds the wrist past its end, but well short of the command.
-        let wrist = arm.joint_positions(&gated)[5];
-        assert!(
-            wrist > upper - 0.01 && wrist < upper + 0.15,
-            "the wrist ended at {wrist} rad, its limit {upper}, commanded {}",
-            upper + 0.3
-        );
+        let wrist = arm.joint_positions(&world)[5];
+        assert!((wrist - upper).abs() < 1e-5, "the wrist ended at {wrist} rad");
     }
 
     #[test]

@@ -1,0 +1,345 @@
+//! The arm's six joints driven along their servos' response instead of simulated as a multibody.
+//!
+//! The arm's servos are acceleration-based joint motors, stiffness 1e6 1/s^2 and damping 2e3
+//! 1/s (natural frequency 1000 rad/s, critically damped): per unit inertia, so whatever the
+//! links weigh and whatever the gripper carries, each joint follows its command by the same
+//! implicit spring-damper law. Rapier solved that law, inside the arm's 8-DOF multibody, once
+//! per substep, with the multibody's mass matrix, its LU factors and its forward kinematics
+//! recomputed each time: most of a trial's instructions (docs/speed.md).
+//!
+//! Here each joint's coordinate and velocity are integrated by that same law, substep by
+//! substep (see [`ServoDrive::advance`]), and the links are kinematic bodies placed by forward
+//! kinematics through the URDF's joint frames at the end of the step: rapier moves them there
+//! over the step at constant velocity and lets them push what they touch. A joint moves as an
+//! ideal servo would: no gravity sag, no coupling through the links' inertia, no torque limit
+//! (the arm's loads are far below its efforts; docs/physics.md).
+
+use rapier3d::prelude::*;
+
+/// One servo-driven revolute joint: the link it moves, on the link it hangs from.
+#[derive(Debug, Clone)]
+pub(super) struct ServoJoint {
+    /// Index of the parent link in the drive's link poses.
+    parent: usize,
+    /// Index of the moved link in the drive's link poses.
+    child: usize,
+    /// The moved link's body.
+    body: RigidBodyHandle,
+    /// The joint's frame on the parent link, its x axis the rotation axis.
+    frame1: Pose,
+    /// The inverse of the joint's frame on the moved link.
+    frame2_inv: Pose,
+    /// Position limits, rad.
+    min: f64,
+    max: f64,
+    /// Coordinate (rad) and velocity (rad/s).
+    q: f64,
+    v: f64,
+    /// Commanded position and feed-forward velocity.
+    target_q: f64,
+    target_v: f64,
+    /// Servo stiffness (1/s^2) and damping (1/s).
+    stiffness: f64,
+    damping: f64,
+}
+
+impl ServoJoint {
+    /// A joint at rest at 0, commanded to stay there, with no gains until commanded.
+    pub(super) fn new(
+        (parent, child): (usize, usize),
+        body: RigidBodyHandle,
+        joint: &GenericJoint,
+    ) -> Self {
+        let limits = joint.limits(JointAxis::AngX).map(|l| [l.min, l.max]);
+        let [min, max] = limits.unwrap_or([-Real::MAX, Real::MAX]);
+        Self {
+            parent,
+            child,
+            body,
+            frame1: joint.local_frame1,
+            frame2_inv: joint.local_frame2.inverse(),
+            min: f64::from(min),
+            max: f64::from(max),
+            q: 0.0,
+            v: 0.0,
+            target_q: 0.0,
+            target_v: 0.0,
+            stiffness: 0.0,
+            damping: 0.0,
+        }
+    }
+
+    /// One substep of `h` seconds of the servo law rapier's acceleration-based motor applies
+    /// (`MotorModel::AccelerationBased` and `unit_joint_motor_constraint`): with
+    /// `erp = k / (h k + c)` and `cfm = 1 / (h^2 k + h c)`, the velocity the constraint leaves,
+    /// solved alone, is `v' = (cfm v + vt - erp (q - qt)) / (1 + cfm)`, the target velocity
+    /// `vt` first clamped to what reaches a limit within the substep; then `q' = q + h v'`.
+    /// A joint that would pass a limit stops there.
+    fn substep(&mut self, h: f64) {
+        let (k, c) = (self.stiffness, self.damping);
+        let denominator = h * h * k + h * c;
+        if denominator <= 0.0 {
+            // No servo: the joint keeps its speed (nothing else acts on an ideal joint).
+            self.q += h * self.v;
+        } else {
+            let erp = k / (h * k + c);
+            let cfm = 1.0 / denominator;
+            let vt = self
+                .target_v
+                .clamp((self.min - self.q) / h, (self.max - self.q) / h);
+            self.v = (cfm * self.v + vt - erp * (self.q - self.target_q)) / (1.0 + cfm);
+            self.q += h * self.v;
+        }
+        if self.q < self.min || self.q > self.max {
+            self.q = self.q.clamp(self.min, self.max);
+            self.v = 0.0;
+        }
+    }
+}
+
+/// A finger on its prismatic joint as the URDF gives it: the body carrying it, its own body
+/// and the joint's frames on each, the frames' x axis its direction of travel.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Finger {
+    pub(super) host: RigidBodyHandle,
+    pub(super) body: RigidBodyHandle,
+    pub(super) frame1: Pose,
+    pub(super) frame2: Pose,
+}
+
+impl Finger {
+    /// The finger's offset along its joint (the pad's distance from the centre line), m.
+    pub(super) fn offset(&self, bodies: &RigidBodySet) -> f64 {
+        let (Some(host), Some(body)) = (bodies.get(self.host), bodies.get(self.body)) else {
+            return 0.0;
+        };
+        let frame1 = host.position() * self.frame1;
+        let frame2 = body.position() * self.frame2;
+        f64::from(frame1.inv_mul(&frame2).translation.x)
+    }
+
+    /// The finger's pose at `offset` along its joint, as its host is now.
+    pub(super) fn pose_at(&self, bodies: &RigidBodySet, offset: f64) -> Option<Pose> {
+        let host = bodies.get(self.host)?;
+        let slide = Pose::from_translation(Vector::new(offset as Real, 0.0, 0.0));
+        Some(host.position() * self.frame1 * slide * self.frame2.inverse())
+    }
+}
+
+/// The parallel jaws' rack and pinion: the two fingers open and close together, about the
+/// gripper's centre line. The left finger slides on the gripper on a prismatic joint, the right
+/// finger on the left one (so the squeeze, the motor of that joint, acts between the fingers
+/// and pushes nothing else), and before each step the left finger's joint is servoed to half
+/// the gap: the fingers' common motion is held as a rack would hold it, whatever the squeeze.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Jaws {
+    /// Left and right finger, each on the gripper as the URDF has it.
+    pub(super) fingers: [Finger; 2],
+    /// The left finger's joint on the gripper.
+    pub(super) left_joint: ImpulseJointHandle,
+}
+
+/// Servo of the left finger's joint to the middle of the gap: as stiff as the arm's joints
+/// (acceleration-based, 1/s^2 and 1/s), and strong enough for any load the pads hold, N.
+const CENTRING_GAINS: (Real, Real) = (1.0e6, 2.0e3);
+const CENTRING_FORCE_N: Real = 2_000.0;
+
+impl Jaws {
+    /// Each finger's offset from the centre line, left then right, m.
+    pub(super) fn offsets(&self, bodies: &RigidBodySet) -> [f64; 2] {
+        self.fingers.map(|f| f.offset(bodies))
+    }
+
+    /// Servos the left finger's joint to half the gap between the fingers.
+    fn centre(&self, physics: &mut PhysicsWorld) {
+        let [left, right] = self.offsets(&physics.bodies);
+        let Some(joint) = physics.impulse_joints.get_mut(self.left_joint, false) else {
+            return;
+        };
+        let data = &mut joint.data;
+        let (stiffness, damping) = CENTRING_GAINS;
+        data.set_motor_model(JointAxis::LinX, MotorModel::AccelerationBased);
+        data.set_motor(
+            JointAxis::LinX,
+            (0.5 * (left + right)) as Real,
+            0.0,
+            stiffness,
+            damping,
+        );
+        data.set_motor_max_force(JointAxis::LinX, CENTRING_FORCE_N);
+    }
+}
+
+/// The arm's joints, their states and commands, and the poses of the links they move.
+#[derive(Debug, Clone)]
+pub(super) struct ServoDrive {
+    /// The joints, each after the joint that moves its parent.
+    joints: Vec<ServoJoint>,
+    /// The link poses, by the drive's link index; the roots' never change.
+    poses: Vec<Pose>,
+    /// The gripper's jaws, centred before each step.
+    pub(super) jaws: Option<Jaws>,
+}
+
+impl ServoDrive {
+    /// A drive for `joints` over links whose poses are `poses` now (the roots' stay there).
+    /// The joints are put in an order where each comes after the one moving its parent.
+    pub(super) fn new(mut joints: Vec<ServoJoint>, poses: Vec<Pose>) -> Self {
+        let mut ordered: Vec<ServoJoint> = Vec::with_capacity(joints.len());
+        while !joints.is_empty() {
+            let ready = joints
+                .iter()
+                .position(|j| !joints.iter().any(|other| other.child == j.parent));
+            // A cycle cannot come out of a URDF tree; take the rest as they are.
+            let index = ready.unwrap_or(0);
+            ordered.push(joints.remove(index));
+        }
+        Self {
+            joints: ordered,
+            poses,
+            jaws: None,
+        }
+    }
+
+    /// The joint that moves the link `child`.
+    fn joint_mut(&mut self, child: usize) -> Option<&mut ServoJoint> {
+        self.joints.iter_mut().find(|j| j.child == child)
+    }
+
+    /// Coordinate and velocity of the joint moving link `child`.
+    pub(super) fn state(&self, child: usize) -> Option<(f64, f64)> {
+        self.joints
+            .iter()
+            .find(|j| j.child == child)
+            .map(|j| (j.q, j.v))
+    }
+
+    /// Commands the joint moving link `child` to `q` at feed-forward velocity `qd` with the
+    /// servo gains `stiffness` and `damping`.
+    pub(super) fn command(&mut self, child: usize, q: f64, qd: f64, gains: (f64, f64)) {
+        if let Some(joint) = self.joint_mut(child) {
+            joint.target_q = q;
+            joint.target_v = qd;
+            (joint.stiffness, joint.damping) = gains;
+        }
+    }
+
+    /// Sets the joint moving link `child` at rest at `q`, held there.
+    pub(super) fn reset(&mut self, child: usize, q: f64) {
+        if let Some(joint) = self.joint_mut(child) {
+            joint.q = q;
+            joint.v = 0.0;
+            joint.target_q = q;
+            joint.target_v = 0.0;
+        }
+    }
+
+    /// Integrates every joint over a step of `dt` seconds in `substeps` substeps, as rapier's
+    /// solver would have, and works out the links' poses at its end.
+    pub(super) fn advance(&mut self, dt: f64, substeps: usize) {
+        let h = dt / substeps.max(1) as f64;
+        for joint in &mut self.joints {
+            for _ in 0..substeps.max(1) {
+                joint.substep(h);
+            }
+        }
+        self.forward_kinematics();
+    }
+
+    /// The links' poses from the joints' coordinates.
+    pub(super) fn forward_kinematics(&mut self) {
+        for joint in &self.joints {
+            let rotation = Rotation::from_rotation_x(joint.q as Real);
+            let pose = self.poses[joint.parent]
+                * joint.frame1
+                * Pose::from_rotation(rotation)
+                * joint.frame2_inv;
+            self.poses[joint.child] = pose;
+        }
+    }
+
+    /// Hands the moved links' poses to their kinematic bodies as where the step ends (rapier
+    /// moves them there over the step); `now` also puts them there at once (a reset).
+    pub(super) fn place(&self, physics: &mut PhysicsWorld, now: bool) {
+        if let Some(jaws) = &self.jaws {
+            jaws.centre(physics);
+        }
+        let bodies = &mut physics.bodies;
+        for joint in &self.joints {
+            let Some(body) = bodies.get_mut(joint.body) else {
+                continue;
+            };
+            let pose = self.poses[joint.child];
+            if now {
+                body.set_position(pose, true);
+            }
+            body.set_next_kinematic_position(pose);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn joint(min: f64, max: f64) -> ServoJoint {
+        ServoJoint {
+            parent: 0,
+            child: 1,
+            body: RigidBodyHandle::invalid(),
+            frame1: Pose::IDENTITY,
+            frame2_inv: Pose::IDENTITY,
+            min,
+            max,
+            q: 0.0,
+            v: 0.0,
+            target_q: 0.0,
+            target_v: 0.0,
+            stiffness: 1.0e6,
+            damping: 2.0e3,
+        }
+    }
+
+    #[test]
+    fn a_step_command_settles_like_a_critically_damped_servo() {
+        // A 10 mrad step: the continuous critically damped response at 1000 rad/s is
+        // 1 - (1 + w t) e^(-w t); the implicit law is its backward-Euler-like discretisation,
+        // close to it at 4 substeps of a 240 Hz step and never overshooting.
+        let mut j = joint(-3.0, 3.0);
+        j.target_q = 0.01;
+        let h = 1.0 / 240.0 / 4.0;
+        let mut worst: f64 = 0.0;
+        for n in 1..=400 {
+            j.substep(h);
+            let t = n as f64 * h;
+            let ideal = 0.01 * (1.0 - (1.0 + 1000.0 * t) * (-1000.0 * t).exp());
+            worst = worst.max((j.q - ideal).abs());
+            assert!(j.q <= 0.01 + 1e-12, "overshoot {} at substep {n}", j.q);
+        }
+        assert!((j.q - 0.01).abs() < 1e-9, "settled at {}", j.q);
+        assert!(worst < 0.004, "largest departure from the continuous law {worst}");
+    }
+
+    #[test]
+    fn a_ramp_is_tracked_and_a_limit_stops_the_joint() {
+        // Commanded along q = 2 t with its feed-forward velocity, sampled per 240 Hz step.
+        let mut j = joint(-1.0, 0.5);
+        let dt = 1.0 / 240.0;
+        for step in 1..=48 {
+            j.target_q = 2.0 * step as f64 * dt;
+            j.target_v = 2.0;
+            for _ in 0..2 {
+                j.substep(dt / 2.0);
+            }
+            assert!((j.q - j.target_q).abs() < 1e-3, "step {step}: {}", j.q);
+        }
+        // On to 0.3 rad past the upper limit: it stops at the limit, at rest.
+        for _ in 0..240 {
+            j.target_q = 0.8;
+            j.target_v = 0.0;
+            j.substep(dt / 2.0);
+            assert!(j.q <= 0.5);
+        }
+        assert_eq!((j.q, j.v), (0.5, 0.0));
+    }
+}
