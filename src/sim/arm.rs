@@ -11,7 +11,7 @@ use rapier3d_urdf::{UrdfJoint, UrdfLoaderOptions, UrdfRobot};
 
 use super::urdf_graph::{tree_error, value_error};
 use super::weld::{WeldedRobot, weld_fixed_links};
-use super::servo::{Finger, Jaws, ServoDrive, ServoJoint};
+use super::servo::{ServoDrive, ServoJoint};
 use super::{SimError, Tag, World};
 use crate::kinematics::{BUILTIN_URDF, BUILTIN_URDF_PATH, DOF, JointVector, UrdfArm};
 use crate::math::{pose_from_physics, pose_to_physics};
@@ -59,10 +59,11 @@ pub struct ArmLink {
 pub struct SimArm {
     /// The servo drive's index of the link each arm joint moves.
     joints: [usize; DOF],
-    /// The joint of the right finger on the left one: its motor is the squeeze.
-    gap_joint: ImpulseJointHandle,
-    /// The fingers on the gripper as the URDF has them, left then right.
-    jaws: [Finger; 2],
+    /// The fingers' joints on the jaws' carrier, left then right.
+    fingers: [MultibodyJointHandle; 2],
+    /// The jaws' carrier, and the gripper's body it is welded to.
+    carrier: RigidBodyHandle,
+    host: RigidBodyHandle,
     flange_body: RigidBodyHandle,
     links: Vec<ArmLink>,
     world_from_base: Isometry3<f64>,
@@ -176,11 +177,6 @@ impl SimArm {
                         .insert_with_parent(c.collider, handle, &mut physics.bodies)
                 })
                 .collect();
-            if dynamic && let Ok(m) = std::env::var("H29_FMASS") {
-                if let Some(b) = physics.bodies.get_mut(handle) {
-                    b.set_additional_mass(m.parse().unwrap_or(0.08), true);
-                }
-            }
             bodies.push(handle);
             link_colliders.push(colliders);
         }
@@ -224,44 +220,38 @@ impl SimArm {
             }
             finger_joints.push(joint);
         }
-        let (left, right) = (finger_joints[0], finger_joints[1]);
-        let finger = |j: &UrdfJoint| Finger {
-            host: bodies[j.link1],
-            body: bodies[j.link2],
-            frame1: j.joint.local_frame1,
-            frame2: j.joint.local_frame2,
-        };
-        let jaw_fingers = [finger(left), finger(right)];
-        let mut left_data = left.joint;
-        left_data.set_contacts_enabled(false);
-        // The right finger slides on the left one, along the same line: its offset on the
-        // gripper plus the left's is the gap (the fingers' axes are opposite).
-        let mut gap_data = right.joint;
-        gap_data.set_contacts_enabled(false);
-        gap_data.local_frame1 = left.joint.local_frame2
-            * left.joint.local_frame1.inverse()
-            * right.joint.local_frame1;
-        let range = |j: &UrdfJoint| j.joint.limits(JointAxis::LinX).map(|l| [l.min, l.max]);
-        if let (Some(l), Some(r)) = (range(left), range(right)) {
-            gap_data.set_limits(JointAxis::LinX, [l[0] + r[0], l[1] + r[1]]);
+        // The jaws: a small multibody, the two fingers on their prismatic joints coupled as a
+        // rack couples them, rooted on a heavy, weightless carrier welded to the gripper's
+        // kinematic body (a multibody's non-dynamic root would not pass its motion on to the
+        // fingers' velocities, which the pads' friction needs).
+        let host = bodies[finger_joints[0].link1];
+        let host_pose = physics.bodies.get(host).map_or(Pose::IDENTITY, |b| *b.position());
+        let carrier = physics.bodies.insert(
+            RigidBodyBuilder::dynamic()
+                .pose(host_pose)
+                .additional_mass_properties(MassProperties::new(
+                    Vector::ZERO,
+                    std::env::var("H29_CM").ok().and_then(|v| v.parse().ok()).unwrap_or(CARRIER_MASS_KG),
+                    Vector::splat(std::env::var("H29_CI").ok().and_then(|v| v.parse().ok()).unwrap_or(CARRIER_INERTIA_KG_M2)),
+                ))
+                .gravity_scale(0.0)
+                .can_sleep(false),
+        );
+        physics.impulse_joints.insert(
+            host,
+            carrier,
+            FixedJointBuilder::new().contacts_enabled(false),
+            true,
+        );
+        let mut fingers = [MultibodyJointHandle::invalid(); 2];
+        for (i, joint) in finger_joints.iter().enumerate() {
+            fingers[i] = physics
+                .multibody_joints
+                .insert(carrier, bodies[joint.link2], joint.joint, true)
+                .ok_or_else(|| missing(FINGER_JOINTS[i]))?;
         }
-        let left_joint = physics.impulse_joints.insert(
-            bodies[left.link1],
-            bodies[left.link2],
-            left_data,
-            true,
-        );
-        let gap_joint = physics.impulse_joints.insert(
-            bodies[left.link2],
-            bodies[right.link2],
-            gap_data,
-            true,
-        );
-        let mut drive = ServoDrive::new(servos, poses);
-        drive.jaws = Some(Jaws {
-            fingers: jaw_fingers,
-            left_joint,
-        });
+        couple_fingers(world, &fingers);
+        let drive = ServoDrive::new(servos, poses);
         world.drive = Some(drive);
         // Every URDF link with a body or a collider, in the file's order; a welded link names
         // its host's body and its own colliders.
@@ -300,8 +290,9 @@ impl SimArm {
         };
         let arm = Self {
             joints,
-            gap_joint,
-            jaws: jaw_fingers,
+            fingers,
+            carrier,
+            host,
             flange_body,
             links,
             world_from_base,
@@ -360,7 +351,8 @@ impl SimArm {
 
     /// Measured finger positions: each pad's distance from the gripper's centre line.
     pub fn finger_positions_m(&self, world: &World) -> [f64; 2] {
-        self.jaws.map(|finger| finger.offset(&world.physics.bodies))
+        self.fingers
+            .map(|handle| f64::from(joint_coord(world, handle, PRISMATIC_COORD).unwrap_or(0.0)))
     }
 
     /// Commands the joint servos to a position and feed-forward velocity.
@@ -382,22 +374,14 @@ impl SimArm {
     /// Drives both fingers towards `pad_offset_m` from the centre line, pushing with at most
     /// `max_force_n` each: a force-limited parallel gripper.
     pub fn command_gripper(&self, world: &mut World, pad_offset_m: f64, max_force_n: f64) {
-        if let Some(joint) = world.physics.impulse_joints.get_mut(self.gap_joint, false) {
-            let data = &mut joint.data;
-            // Force-based so that the limit is in newtons: a stiff, well-damped servo that
-            // saturates at the force limit when the jaws are blocked by a part. On the gap, the
-            // motor of the fingers' relative motion: each finger's 4000 N/m and 120 N s/m on its
-            // offset are half that on the gap (twice the offset), over half the mass.
-            data.set_motor_model(JointAxis::LinX, MotorModel::ForceBased);
-            let scale: f32 = std::env::var("H29_FMASS").ok().and_then(|m| m.parse().ok()).map_or(1.0, |m: f32| m / 0.08);
-            data.set_motor(
-                JointAxis::LinX,
-                (2.0 * pad_offset_m) as f32,
-                0.0,
-                2_000.0 * scale,
-                60.0 * scale,
-            );
-            data.set_motor_max_force(JointAxis::LinX, max_force_n as f32);
+        for handle in &self.fingers {
+            with_joint_mut(world, *handle, |joint| {
+                // Force-based so that the limit is in newtons: a stiff, well-damped servo that
+                // saturates at the force limit when the jaws are blocked by a part.
+                joint.set_motor_model(JointAxis::LinX, MotorModel::ForceBased);
+                joint.set_motor(JointAxis::LinX, pad_offset_m as f32, 0.0, 4_000.0, 120.0);
+                joint.set_motor_max_force(JointAxis::LinX, max_force_n as f32);
+            });
         }
     }
 
@@ -412,16 +396,31 @@ impl SimArm {
         }
         drive.forward_kinematics();
         let physics = &mut world.physics;
-        drive.place(physics, true);
-        for finger in &self.jaws {
-            let Some(pose) = finger.pose_at(&physics.bodies, pad_offset_m) else {
-                continue;
-            };
-            if let Some(body) = physics.bodies.get_mut(finger.body) {
-                body.set_position(pose, true);
-                body.set_linvel(Vector::ZERO, true);
-                body.set_angvel(Vector::ZERO, true);
+        drive.place(&mut physics.bodies, true);
+        // The carrier where the gripper now is, at rest, and the fingers at `pad_offset_m`.
+        let host_pose = physics.bodies.get(self.host).map(|b| *b.position());
+        if let (Some(pose), Some(carrier)) = (host_pose, physics.bodies.get_mut(self.carrier)) {
+            carrier.set_position(pose, true);
+            carrier.set_linvel(Vector::ZERO, true);
+            carrier.set_angvel(Vector::ZERO, true);
+        }
+        let targets: Vec<usize> = self
+            .fingers
+            .iter()
+            .filter_map(|handle| physics.multibody_joints.get(*handle).map(|(_, link)| link))
+            .collect();
+        if let Some((multibody, _)) = physics.multibody_joints.get_mut(self.fingers[0]) {
+            let mut displacement = vec![0.0f32; multibody.ndofs()];
+            for link_id in targets {
+                if let Some(link) = multibody.link(link_id) {
+                    let offset = pad_offset_m as f32 - link.joint().coords()[PRISMATIC_COORD];
+                    displacement[link.assembly_id()] = offset;
+                }
             }
+            multibody.apply_displacements(&displacement);
+            multibody.generalized_velocity_mut().fill(0.0);
+            multibody.forward_kinematics(&physics.bodies, true);
+            multibody.update_rigid_bodies(&mut physics.bodies, false);
         }
         self.command(world, q, &[0.0; DOF]);
         self.command_gripper(world, pad_offset_m, 40.0);
@@ -435,6 +434,54 @@ impl SimArm {
             .get(self.flange_body)
             .map(|body| pose_from_physics(body.position()))
             .unwrap_or_else(Isometry3::identity)
+    }
+}
+
+/// Index of a prismatic joint's offset in a multibody joint's coordinates.
+const PRISMATIC_COORD: usize = 0;
+/// Mass (kg) and principal inertia (kg m^2) of the jaws' carrier: heavy enough that what the
+/// pads hold barely moves it against its weld to the gripper.
+const CARRIER_MASS_KG: f32 = 50.0;
+const CARRIER_INERTIA_KG_M2: f32 = 1.0;
+
+/// Couples the two finger joints so they open and close together, as a parallel gripper's jaws
+/// do through their rack and pinion.
+fn couple_fingers(world: &mut World, fingers: &[MultibodyJointHandle; 2]) {
+    let joints = &mut world.physics.multibody_joints;
+    let (Some((_, left)), Some((_, right))) = (joints.get(fingers[0]), joints.get(fingers[1]))
+    else {
+        return;
+    };
+    if let Some((multibody, _)) = joints.get_mut(fingers[0]) {
+        multibody.add_dof_coupling(MultibodyDofCoupling {
+            link1: left,
+            dof1: 0,
+            axis1: PRISMATIC_COORD,
+            link2: right,
+            dof2: 0,
+            axis2: PRISMATIC_COORD,
+            coeff: 1.0,
+            offset: 0.0,
+        });
+    }
+}
+
+/// Coordinate `axis` of a multibody joint, if the joint exists.
+fn joint_coord(world: &World, handle: MultibodyJointHandle, axis: usize) -> Option<f32> {
+    let (multibody, link) = world.physics.multibody_joints.get(handle)?;
+    Some(multibody.link(link)?.joint().coords()[axis])
+}
+
+/// Applies `edit` to a multibody joint's description, if the joint exists.
+fn with_joint_mut(
+    world: &mut World,
+    handle: MultibodyJointHandle,
+    edit: impl FnOnce(&mut GenericJoint),
+) {
+    if let Some((multibody, link)) = world.physics.multibody_joints.get_mut(handle)
+        && let Some(link) = multibody.link_mut(link)
+    {
+        edit(&mut link.joint.data);
     }
 }
 

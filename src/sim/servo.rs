@@ -97,79 +97,6 @@ impl ServoJoint {
     }
 }
 
-/// A finger on its prismatic joint as the URDF gives it: the body carrying it, its own body
-/// and the joint's frames on each, the frames' x axis its direction of travel.
-#[derive(Debug, Clone, Copy)]
-pub(super) struct Finger {
-    pub(super) host: RigidBodyHandle,
-    pub(super) body: RigidBodyHandle,
-    pub(super) frame1: Pose,
-    pub(super) frame2: Pose,
-}
-
-impl Finger {
-    /// The finger's offset along its joint (the pad's distance from the centre line), m.
-    pub(super) fn offset(&self, bodies: &RigidBodySet) -> f64 {
-        let (Some(host), Some(body)) = (bodies.get(self.host), bodies.get(self.body)) else {
-            return 0.0;
-        };
-        let frame1 = host.position() * self.frame1;
-        let frame2 = body.position() * self.frame2;
-        f64::from(frame1.inv_mul(&frame2).translation.x)
-    }
-
-    /// The finger's pose at `offset` along its joint, as its host is now.
-    pub(super) fn pose_at(&self, bodies: &RigidBodySet, offset: f64) -> Option<Pose> {
-        let host = bodies.get(self.host)?;
-        let slide = Pose::from_translation(Vector::new(offset as Real, 0.0, 0.0));
-        Some(host.position() * self.frame1 * slide * self.frame2.inverse())
-    }
-}
-
-/// The parallel jaws' rack and pinion: the two fingers open and close together, about the
-/// gripper's centre line. The left finger slides on the gripper on a prismatic joint, the right
-/// finger on the left one (so the squeeze, the motor of that joint, acts between the fingers
-/// and pushes nothing else), and before each step the left finger's joint is servoed to half
-/// the gap: the fingers' common motion is held as a rack would hold it, whatever the squeeze.
-#[derive(Debug, Clone, Copy)]
-pub(super) struct Jaws {
-    /// Left and right finger, each on the gripper as the URDF has it.
-    pub(super) fingers: [Finger; 2],
-    /// The left finger's joint on the gripper.
-    pub(super) left_joint: ImpulseJointHandle,
-}
-
-/// Servo of the left finger's joint to the middle of the gap: as stiff as the arm's joints
-/// (acceleration-based, 1/s^2 and 1/s), and strong enough for any load the pads hold, N.
-const CENTRING_GAINS: (Real, Real) = (1.0e6, 2.0e3);
-const CENTRING_FORCE_N: Real = 2_000.0;
-
-impl Jaws {
-    /// Each finger's offset from the centre line, left then right, m.
-    pub(super) fn offsets(&self, bodies: &RigidBodySet) -> [f64; 2] {
-        self.fingers.map(|f| f.offset(bodies))
-    }
-
-    /// Servos the left finger's joint to half the gap between the fingers.
-    fn centre(&self, physics: &mut PhysicsWorld) {
-        let [left, right] = self.offsets(&physics.bodies);
-        let Some(joint) = physics.impulse_joints.get_mut(self.left_joint, false) else {
-            return;
-        };
-        let data = &mut joint.data;
-        let (stiffness, damping) = CENTRING_GAINS;
-        data.set_motor_model(JointAxis::LinX, MotorModel::AccelerationBased);
-        data.set_motor(
-            JointAxis::LinX,
-            (0.5 * (left + right)) as Real,
-            0.0,
-            stiffness,
-            damping,
-        );
-        data.set_motor_max_force(JointAxis::LinX, CENTRING_FORCE_N);
-    }
-}
-
 /// The arm's joints, their states and commands, and the poses of the links they move.
 #[derive(Debug, Clone)]
 pub(super) struct ServoDrive {
@@ -177,8 +104,6 @@ pub(super) struct ServoDrive {
     joints: Vec<ServoJoint>,
     /// The link poses, by the drive's link index; the roots' never change.
     poses: Vec<Pose>,
-    /// The gripper's jaws, centred before each step.
-    pub(super) jaws: Option<Jaws>,
 }
 
 impl ServoDrive {
@@ -197,7 +122,6 @@ impl ServoDrive {
         Self {
             joints: ordered,
             poses,
-            jaws: None,
         }
     }
 
@@ -260,11 +184,7 @@ impl ServoDrive {
 
     /// Hands the moved links' poses to their kinematic bodies as where the step ends (rapier
     /// moves them there over the step); `now` also puts them there at once (a reset).
-    pub(super) fn place(&self, physics: &mut PhysicsWorld, now: bool) {
-        if let Some(jaws) = &self.jaws {
-            jaws.centre(physics);
-        }
-        let bodies = &mut physics.bodies;
+    pub(super) fn place(&self, bodies: &mut RigidBodySet, now: bool) {
         for joint in &self.joints {
             let Some(body) = bodies.get_mut(joint.body) else {
                 continue;

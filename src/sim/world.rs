@@ -159,33 +159,10 @@ impl World {
         let substeps = self.next_solver_iterations();
         if let Some(drive) = self.drive.as_mut() {
             drive.advance(self.params.dt_s, substeps);
-            drive.place(&mut self.physics, false);
+            drive.place(&mut self.physics.bodies, false);
         }
         self.physics.integration_parameters.num_solver_iterations = substeps;
-        if let Ok(n) = std::env::var("H29_PGS") {
-            self.physics.integration_parameters.num_internal_pgs_iterations = n.parse().unwrap_or(1);
-        }
         self.physics.step_with_events(hooks, &());
-        if std::env::var("H29_DBG").is_ok()
-            && let Some(jaws) = self.drive.as_ref().and_then(|d| d.jaws.as_ref())
-        {
-            let mut worst = [0.0f32; 2];
-            for (i, f) in jaws.fingers.iter().enumerate() {
-                let off = f.offset(&self.physics.bodies);
-                if let (Some(p), Some(b)) = (f.pose_at(&self.physics.bodies, off), self.physics.bodies.get(f.body)) {
-                    worst[i] = (p.translation - b.position().translation).length();
-                }
-            }
-            let o = jaws.offsets(&self.physics.bodies);
-            if self.steps < 3 {
-                for (h, j) in self.physics.impulse_joints.iter() {
-                    let (Some(b1), Some(b2)) = (self.physics.bodies.get(j.body1()), self.physics.bodies.get(j.body2())) else { continue };
-                    let rel = (b1.position() * j.data.local_frame1).inv_mul(&(b2.position() * j.data.local_frame2));
-                    eprintln!("DBGJ {:?} {:?} {:?}", h, rel.translation, rel.rotation);
-                }
-            }
-            eprintln!("DBG {} {:.6} {:.6} {:.5} {:.5}", self.steps, worst[0], worst[1], o[0], o[1]);
-        }
         self.steps += 1;
     }
 
