@@ -9,9 +9,9 @@ use nalgebra::Isometry3;
 use rapier3d::prelude::*;
 use rapier3d_urdf::{UrdfJoint, UrdfLoaderOptions, UrdfRobot};
 
+use super::servo::{ServoDrive, ServoJoint};
 use super::urdf_graph::{tree_error, value_error};
 use super::weld::{WeldedRobot, weld_fixed_links};
-use super::servo::{ServoDrive, ServoJoint};
 use super::{SimError, Tag, World};
 use crate::kinematics::{BUILTIN_URDF, BUILTIN_URDF_PATH, DOF, JointVector, UrdfArm};
 use crate::math::{pose_from_physics, pose_to_physics};
@@ -182,7 +182,12 @@ impl SimArm {
         }
         let poses: Vec<Pose> = bodies
             .iter()
-            .map(|b| physics.bodies.get(*b).map_or(Pose::IDENTITY, |b| *b.position()))
+            .map(|b| {
+                physics
+                    .bodies
+                    .get(*b)
+                    .map_or(Pose::IDENTITY, |b| *b.position())
+            })
             .collect();
         // Revolute joints go to the servo drive by the link they move; the fingers' prismatic
         // joints make the jaws (`sim::servo::Jaws`).
@@ -225,14 +230,25 @@ impl SimArm {
         // kinematic body (a multibody's non-dynamic root would not pass its motion on to the
         // fingers' velocities, which the pads' friction needs).
         let host = bodies[finger_joints[0].link1];
-        let host_pose = physics.bodies.get(host).map_or(Pose::IDENTITY, |b| *b.position());
+        let host_pose = physics
+            .bodies
+            .get(host)
+            .map_or(Pose::IDENTITY, |b| *b.position());
         let carrier = physics.bodies.insert(
             RigidBodyBuilder::dynamic()
                 .pose(host_pose)
                 .additional_mass_properties(MassProperties::new(
                     Vector::ZERO,
-                    std::env::var("H29_CM").ok().and_then(|v| v.parse().ok()).unwrap_or(CARRIER_MASS_KG),
-                    Vector::splat(std::env::var("H29_CI").ok().and_then(|v| v.parse().ok()).unwrap_or(CARRIER_INERTIA_KG_M2)),
+                    std::env::var("H29_CM")
+                        .ok()
+                        .and_then(|v| v.parse().ok())
+                        .unwrap_or(CARRIER_MASS_KG),
+                    Vector::splat(
+                        std::env::var("H29_CI")
+                            .ok()
+                            .and_then(|v| v.parse().ok())
+                            .unwrap_or(CARRIER_INERTIA_KG_M2),
+                    ),
                 ))
                 .gravity_scale(0.0)
                 .can_sleep(false),
@@ -339,14 +355,24 @@ impl SimArm {
 
     /// Measured joint angles (controller convention).
     pub fn joint_positions(&self, world: &World) -> JointVector {
-        self.joints
-            .map(|link| world.drive.as_ref().and_then(|d| d.state(link)).map_or(0.0, |s| s.0))
+        self.joints.map(|link| {
+            world
+                .drive
+                .as_ref()
+                .and_then(|d| d.state(link))
+                .map_or(0.0, |s| s.0)
+        })
     }
 
     /// Joint velocities, rad/s.
     pub fn joint_velocities(&self, world: &World) -> JointVector {
-        self.joints
-            .map(|link| world.drive.as_ref().and_then(|d| d.state(link)).map_or(0.0, |s| s.1))
+        self.joints.map(|link| {
+            world
+                .drive
+                .as_ref()
+                .and_then(|d| d.state(link))
+                .map_or(0.0, |s| s.1)
+        })
     }
 
     /// Measured finger positions: each pad's distance from the gripper's centre line.

@@ -237,7 +237,10 @@ mod tests {
             assert!(j.q <= 0.01 + 1e-12, "overshoot {} at substep {n}", j.q);
         }
         assert!((j.q - 0.01).abs() < 1e-9, "settled at {}", j.q);
-        assert!(worst < 0.004, "largest departure from the continuous law {worst}");
+        assert!(
+            worst < 0.004,
+            "largest departure from the continuous law {worst}"
+        );
     }
 
     #[test]
@@ -245,13 +248,23 @@ mod tests {
         // Commanded along q = 2 t with its feed-forward velocity, sampled per 240 Hz step.
         let mut j = joint(-1.0, 0.5);
         let dt = 1.0 / 240.0;
+        let mut last = 0.0;
         for step in 1..=48 {
             j.target_q = 2.0 * step as f64 * dt;
             j.target_v = 2.0;
             for _ in 0..2 {
                 j.substep(dt / 2.0);
             }
-            assert!((j.q - j.target_q).abs() < 1e-3, "step {step}: {}", j.q);
+            // Started from rest, it catches up within a few steps, then moves step to step at
+            // the ramp's speed, a steady few milliradians off the step's end point (the target
+            // is held through the step's substeps, as rapier held it).
+            let error = (j.q - j.target_q).abs();
+            assert!(error < 1.5e-2, "step {step}: {error}");
+            let speed = (j.q - last) / dt;
+            last = j.q;
+            if step > 12 {
+                assert!((speed - 2.0).abs() < 0.02, "step {step}: {speed} rad/s");
+            }
         }
         // On to 0.3 rad past the upper limit: it stops at the limit, at rest.
         for _ in 0..240 {

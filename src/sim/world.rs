@@ -330,10 +330,16 @@ mod tests {
             arm.command(&mut world, &q, &qd);
             arm.command_gripper(&mut world, 0.02, 40.0);
             world.step();
-            assert!(arm.joint_positions(&world)[5] <= upper + 1e-6, "step {step}");
+            assert!(
+                arm.joint_positions(&world)[5] <= upper + 1e-6,
+                "step {step}"
+            );
         }
         let wrist = arm.joint_positions(&world)[5];
-        assert!((wrist - upper).abs() < 1e-5, "the wrist ended at {wrist} rad");
+        assert!(
+            (wrist - upper).abs() < 1e-5,
+            "the wrist ended at {wrist} rad"
+        );
     }
 
     #[test]
