@@ -239,16 +239,8 @@ impl SimArm {
                 .pose(host_pose)
                 .additional_mass_properties(MassProperties::new(
                     Vector::ZERO,
-                    std::env::var("H29_CM")
-                        .ok()
-                        .and_then(|v| v.parse().ok())
-                        .unwrap_or(CARRIER_MASS_KG),
-                    Vector::splat(
-                        std::env::var("H29_CI")
-                            .ok()
-                            .and_then(|v| v.parse().ok())
-                            .unwrap_or(CARRIER_INERTIA_KG_M2),
-                    ),
+                    CARRIER_MASS_KG,
+                    Vector::splat(CARRIER_INERTIA_KG_M2),
                 ))
                 .gravity_scale(0.0)
                 .can_sleep(false),
