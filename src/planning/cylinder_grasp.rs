@@ -43,6 +43,10 @@ const TARGET_MARGIN_M: f64 = 0.002;
 const DROP_ABOVE_RIM_M: f64 = 0.02;
 /// How far above the rim-level release point the straight descent over the bin starts, m.
 const DROP_APPROACH_M: f64 = 0.04;
+/// The largest lean of the tool at a drop, deg (the grasps lean up to 35).
+const MAX_DROP_TILT_DEG: f64 = 40.0;
+/// A lean that undoes less than this is none: the tool points straight down, deg.
+const DROP_TILT_DEADBAND_DEG: f64 = 0.5;
 /// Clearance to the walls of a body set down standing in a bin's corner, m (past the planning
 /// margin).
 const CORNER_INSET_M: f64 = 0.012;
@@ -404,13 +408,16 @@ impl PickPlanner {
         in_bin: &[PerceivedObstacle],
     ) -> Result<(PlacePlan, PerceivedObstacle), Failure> {
         let carried = &picked.carried;
-        // The tool points down: the carried body's lowest point is its largest TCP z.
-        let aabb = carried
-            .shape
-            .compute_aabb(&pose_to_physics(&carried.tcp_from_shape));
-        let below_tcp_m = f64::from(aabb.maxs.z);
         let axis_in_tcp = carried.tcp_from_shape.rotation * Vector3::y();
         let lying = axis_in_tcp.z.abs() < std::f64::consts::FRAC_1_SQRT_2;
+        // Let go as it was on the belt: a grasp's lean undone, so that a standing body is
+        // carried and let go upright, not hanging askew in the jaws.
+        let tilt_rad = restoring_tilt_rad(&axis_in_tcp, lying);
+        // The tool points down, leaned about its x: the carried body's lowest point is its
+        // largest z in the unleaned tool frame.
+        let leaned = Isometry3::rotation(Vector3::x() * tilt_rad) * carried.tcp_from_shape;
+        let aabb = carried.shape.compute_aabb(&pose_to_physics(&leaned));
+        let below_tcp_m = f64::from(aabb.maxs.z);
         let radius_m = carried
             .shape
             .as_cylinder()
@@ -440,7 +447,7 @@ impl PickPlanner {
         // A lying body along a diagonal first when the bin holds something, then at the usual
         // yaws.
         let yaws: Vec<f64> = if lying && !in_bin.is_empty() {
-            self.yaws_along_diagonals(carried, bin)
+            self.yaws_along_diagonals(carried, bin, tilt_rad)
                 .into_iter()
                 .chain(PLACE_YAWS_DEG)
                 .collect()
@@ -460,6 +467,7 @@ impl PickPlanner {
                 bin_name: &bin.name,
                 clear_of: &clear_of,
                 yaws_deg: Some(&yaws),
+                tilt_rad,
             };
             let plan = self.place_carried(
                 carried,
@@ -516,13 +524,14 @@ impl PickPlanner {
 
     /// Tool yaws at a place (deg, in 1 degree steps) that put the carried body's axis along one
     /// of `bin`'s diagonals, the longest line a lying body finds in it.
-    fn yaws_along_diagonals(&self, carried: &Carried, bin: &BinBody) -> Vec<f64> {
+    fn yaws_along_diagonals(&self, carried: &Carried, bin: &BinBody, tilt_rad: f64) -> Vec<f64> {
         let diagonal = bin.size[1].atan2(bin.size[0]);
         let here = Vector3::new(bin.floor_center.x, bin.floor_center.y, bin.floor_center.z);
         let base_here = self.world_from_base.inverse() * nalgebra::Point3::from(here);
         let mut yaws = Vec::new();
         for yaw_deg in (0..360).map(f64::from) {
-            let base_from_tcp = self.base_from_tcp(base_here.coords, yaw_deg.to_radians(), 0.0);
+            let base_from_tcp =
+                self.base_from_tcp(base_here.coords, yaw_deg.to_radians(), tilt_rad);
             let axis = (self.world_from_base * base_from_tcp * carried.tcp_from_shape).rotation
                 * Vector3::y();
             let heading = axis.y.atan2(axis.x);
@@ -536,6 +545,28 @@ impl PickPlanner {
             }
         }
         yaws
+    }
+}
+
+/// The tool's lean about its jaw line (its x) that puts a body held with its axis along
+/// `axis_in_tcp` as it was on the belt, rad: upright when it stood, level when it lay; the lean
+/// nearest the tool pointing straight down, at most [`MAX_DROP_TILT_DEG`].
+pub(super) fn restoring_tilt_rad(axis_in_tcp: &Vector3<f64>, lying: bool) -> f64 {
+    // Leaned by t about x, the tool's frame turns the axis's world z into
+    // -(a.y sin t + a.z cos t): zero for a level body, largest for an upright one.
+    let a = axis_in_tcp;
+    let t = if lying {
+        (-a.z).atan2(a.y)
+    } else {
+        a.y.atan2(a.z)
+    };
+    // A half turn gives the same line.
+    let t = t - std::f64::consts::PI * (t / std::f64::consts::PI).round();
+    let max = MAX_DROP_TILT_DEG.to_radians();
+    if t.abs() < DROP_TILT_DEADBAND_DEG.to_radians() {
+        0.0
+    } else {
+        t.clamp(-max, max)
     }
 }
 

@@ -376,3 +376,40 @@ fn bottles_removed_one_after_another_are_let_go_clear_of_those_already_in_the_bi
         }
     }
 }
+
+#[test]
+fn a_bottle_gripped_at_a_lean_is_let_go_as_it_stood_or_lay() {
+    // Held at a lean, a standing bottle carried with the tool pointing straight down hangs askew
+    // in the jaws; the drop undoes the grasp's lean. Drawn over bins, yaws and leans of either
+    // sign up to the grasps' 35 degrees.
+    let planner = planner();
+    let mut rng = crate::rng::SimRng::new(2605);
+    for draw in 0..6 {
+        let bin = waste_bin(&mut rng);
+        for lying in [true, false] {
+            let cylinder = bottle([0.05, -0.45], lying, rng.range(0.0, 3.0));
+            let Ok(mut picked) = planner.plan_cylinder_pick(&cylinder, &[], &home(), 1.0) else {
+                panic!("no grasp (lying {lying})");
+            };
+            // The same body as a grasp leaned by `lean` about the jaw line would hold it.
+            let lean = rng.range(10.0, 35.0).to_radians() * if draw % 2 == 0 { 1.0 } else { -1.0 };
+            picked.carried.tcp_from_shape =
+                Isometry3::rotation(Vector3::x() * lean) * picked.carried.tcp_from_shape;
+            let drop = planner.plan_drop(&picked, &bin, &[]);
+            let Ok((drop, _)) = drop else {
+                panic!("draw {draw}: no drop (lying {lying}): {drop:?}");
+            };
+            let axis = released(&planner, &picked, &drop).rotation * Vector3::y();
+            let off_deg = if lying {
+                axis.z.abs().asin().to_degrees()
+            } else {
+                axis.z.abs().acos().to_degrees()
+            };
+            assert!(
+                off_deg < 1.0,
+                "draw {draw}, lying {lying}, lean {:.1} deg: let go {off_deg:.1} deg off",
+                lean.to_degrees()
+            );
+        }
+    }
+}
