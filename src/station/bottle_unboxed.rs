@@ -215,7 +215,155 @@ fn patches(mask: &mut [bool], cols: usize, rows: usize) -> Vec<Vec<usize>> {
 
 #[cfg(test)]
 mod tests {
-    use super::patches;
+    use image::{Rgb, RgbImage};
+    use nalgebra::{Isometry3, Point3, Vector3};
+
+    use super::{BeltBand, patches};
+    use crate::camera::CameraCalibration;
+    use crate::detect::Detection;
+    use crate::rng::SimRng;
+    use crate::scenario::BottleSection;
+    use crate::station::bottle_evidence::{bottle_sightings, segment_distance};
+    use crate::station::bottle_fit::BottleFitter;
+
+    const BELT_TOP_Z: f64 = 0.70;
+
+    /// The default camera: 0.58 m above the station, 44 degrees across 1280 x 960 pixels.
+    fn fitter() -> BottleFitter {
+        let station = Point3::new(0.05, -0.45, BELT_TOP_Z);
+        let eye = station + Vector3::new(0.0, 0.0, 0.58);
+        let pose = CameraCalibration::look_at(&eye, &station, &Vector3::x()).expect("pose");
+        let calibration =
+            CameraCalibration::from_fov(1280, 960, 44f64.to_radians(), pose, BELT_TOP_Z);
+        let bottle = BottleSection {
+            radius_m: 0.033,
+            height_m: 0.2,
+            ..BottleSection::default()
+        };
+        BottleFitter::new(calibration, &bottle)
+    }
+
+    /// A 640 x 480 frame (half the calibration's pixels) of a dark belt with a bright part box
+    /// and, when `bottle` is given, that bottle's outline filled bright.
+    fn frame(f: &BottleFitter, bottle: Option<&Isometry3<f64>>, part: [f64; 4]) -> RgbImage {
+        let capsule = bottle.and_then(|p| f.capsule(p));
+        RgbImage::from_fn(640, 480, |x, y| {
+            let (u, v) = (f64::from(x) * 2.0 + 1.0, f64::from(y) * 2.0 + 1.0);
+            let in_part = (part[0]..=part[2]).contains(&u) && (part[1]..=part[3]).contains(&v);
+            let in_bottle = capsule.is_some_and(|(a, b, r)| segment_distance(&[u, v], &a, &b) <= r);
+            if in_part || in_bottle {
+                Rgb([200, 200, 190])
+            } else {
+                Rgb([40, 40, 45])
+            }
+        })
+    }
+
+    /// A lying bottle the detector drew no box around, drawn over place and yaw beside a boxed
+    /// part: the scan finds it where it lies. Painted the belt's colour, nothing is found; boxed
+    /// and fitted, it is not found twice.
+    #[test]
+    fn a_bottle_without_a_box_is_found_in_the_pixels() {
+        let f = fitter();
+        let band = BeltBand {
+            centre_y_m: -0.45,
+            half_width_m: 0.16,
+        };
+        let part_box = [600.0, 440.0, 680.0, 520.0];
+        let part = Detection {
+            class_id: 0,
+            class_name: "tube".into(),
+            score: 0.9,
+            box_px: part_box.map(|c| c as f32),
+        };
+        let mut rng = SimRng::new(2511);
+        let mut drawn = 0;
+        while drawn < 8 {
+            let yaw = rng.range(0.0, std::f64::consts::PI);
+            let (x, y) = (rng.range(-0.1, 0.2), rng.range(-0.53, -0.37));
+            let truth = f.pose_at(true, yaw, x, y, BELT_TOP_Z);
+            let Some((a, b, r)) = f.capsule(&truth) else {
+                continue;
+            };
+            // Clear of the part's box and wholly in the frame.
+            let centre = [640.0, 480.0];
+            let (ends_in, near_part) = (
+                [a, b]
+                    .iter()
+                    .all(|p| (40.0..1240.0).contains(&p[0]) && (40.0..920.0).contains(&p[1])),
+                segment_distance(&centre, &a, &b) < r + 80.0,
+            );
+            if !ends_in || near_part {
+                continue;
+            }
+            drawn += 1;
+            let detections = vec![part.clone()];
+            let image = frame(&f, Some(&truth), part_box);
+            let (seen, _) = bottle_sightings(
+                &f,
+                &[],
+                &detections,
+                &image,
+                (1280, 960),
+                BELT_TOP_Z,
+                Some(band),
+            );
+            assert_eq!(seen.len(), 1, "draw {drawn}: {} sightings", seen.len());
+            let pose = &seen[0].poses[0];
+            let middle = |p: &Isometry3<f64>| p * Point3::new(0.0, 0.0, f.height_m / 2.0);
+            let off_m = (middle(&pose.world_from_bottle) - middle(&truth)).norm();
+            let axis = |p: &Isometry3<f64>| p.rotation * Vector3::z();
+            let off_deg = axis(&pose.world_from_bottle)
+                .dot(&axis(&truth))
+                .abs()
+                .min(1.0)
+                .acos()
+                .to_degrees();
+            assert!(
+                pose.lying && off_m < 0.025 && off_deg < 10.0,
+                "draw {drawn}: found {off_m:.3} m and {off_deg:.1} deg off (lying {})",
+                pose.lying
+            );
+            // Without the bottle, nothing.
+            let bare = frame(&f, None, part_box);
+            let (none, _) = bottle_sightings(
+                &f,
+                &[],
+                &detections,
+                &bare,
+                (1280, 960),
+                BELT_TOP_Z,
+                Some(band),
+            );
+            assert!(none.is_empty(), "draw {drawn}: a bottle in an empty belt");
+            // Boxed, it is one sighting.
+            let Some(box_px) = f.projected_box(&truth) else {
+                panic!("draw {drawn}: out of view");
+            };
+            let bottle = Detection {
+                class_id: 1,
+                class_name: "bottle".into(),
+                score: 0.9,
+                box_px: box_px.map(|c| c as f32),
+            };
+            let both = vec![part.clone(), bottle];
+            let (once, _) = bottle_sightings(
+                &f,
+                &[(1, box_px)],
+                &both,
+                &image,
+                (1280, 960),
+                BELT_TOP_Z,
+                Some(band),
+            );
+            assert_eq!(
+                once.len(),
+                1,
+                "draw {drawn}: a boxed bottle seen {} times",
+                once.len()
+            );
+        }
+    }
 
     #[test]
     fn patches_are_the_connected_cells() {
