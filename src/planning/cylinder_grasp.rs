@@ -11,14 +11,12 @@ use rapier3d::geometry::SharedShape;
 
 use super::grasp_search::{Approach, GraspPose, GraspRanking, ScoredGrasp};
 use super::pick_planner::{
-    APPROACH_M, FINGERTIP_BELOW_TCP_M, LINE_STEP_M, PART_OBSTACLE, PLACE_YAWS_DEG,
-    PLANNING_MARGIN_M, PlaceSpot,
+    APPROACH_M, FINGERTIP_BELOW_TCP_M, LINE_STEP_M, PART_OBSTACLE, PLANNING_MARGIN_M,
 };
 use super::{
     CLEARANCE_CAP_M, Carried, CollisionChecker, LinkMount, Obstacle, Payload, PickPlan,
-    PickPlanner, PlacePlan, straight_line,
+    PickPlanner, straight_line,
 };
-use crate::cell::BinBody;
 use crate::kinematics::{DOF, IkSolver, JointVector};
 use crate::math::pose_to_physics;
 use crate::outcome::{Failure, FailureReason, fail};
@@ -39,14 +37,6 @@ const PAD_MIN_OVERLAP_M: f64 = 0.015;
 /// Clearance the open jaws keep to the cylinder itself on the way down (its own pose is fitted,
 /// so the margin to everything else would forbid every grasp), m.
 const TARGET_MARGIN_M: f64 = 0.002;
-/// How far above a waste bin's rim the carried body's lowest point is let go, m.
-const DROP_ABOVE_RIM_M: f64 = 0.02;
-/// How far above the rim-level release point the straight descent over the bin starts, m.
-const DROP_APPROACH_M: f64 = 0.04;
-/// Clearance to the walls of a body set down standing in a bin's corner, m (past the planning
-/// margin).
-const CORNER_INSET_M: f64 = 0.012;
-
 /// A cylinder on the belt to be picked by its body.
 #[derive(Debug, Clone)]
 pub struct GripCylinder {
@@ -391,158 +381,6 @@ impl PickPlanner {
     fn world_from_tcp(&self, xyz: Vector3<f64>, pose: GraspPose) -> Isometry3<f64> {
         self.world_from_base * self.base_from_tcp(xyz, pose.yaw_rad, pose.tilt_rad)
     }
-
-    /// The drop of a picked cylinder into `bin`, where `in_bin` (world) already lies: carried
-    /// over the bin's middle, or when what is in the bin takes that, a standing body over a
-    /// free corner and a lying one along a diagonal, lowered until its lowest point is just
-    /// above the rim, and let go, clear of what is in the bin. Returns the plan and the body as
-    /// it will rest on the floor.
-    pub fn plan_drop(
-        &self,
-        picked: &CylinderPick,
-        bin: &BinBody,
-        in_bin: &[PerceivedObstacle],
-    ) -> Result<(PlacePlan, PerceivedObstacle), Failure> {
-        let carried = &picked.carried;
-        // The tool points down: the carried body's lowest point is its largest TCP z.
-        let aabb = carried
-            .shape
-            .compute_aabb(&pose_to_physics(&carried.tcp_from_shape));
-        let below_tcp_m = f64::from(aabb.maxs.z);
-        let axis_in_tcp = carried.tcp_from_shape.rotation * Vector3::y();
-        let lying = axis_in_tcp.z.abs() < std::f64::consts::FRAC_1_SQRT_2;
-        let radius_m = carried
-            .shape
-            .as_cylinder()
-            .map_or(0.0, |c| f64::from(c.radius));
-        let base_from_world = self.world_from_base.inverse();
-        let clear_of: Vec<Obstacle> = in_bin
-            .iter()
-            .map(|o| Obstacle {
-                name: o.name.to_owned(),
-                base_from_shape: base_from_world * o.world_from_shape,
-                shape: o.shape.clone(),
-            })
-            .collect();
-        let mut checker = picked.checker.clone();
-        for obstacle in &clear_of {
-            checker.add_obstacle(obstacle.clone());
-        }
-        let floor = bin.floor_center;
-        let rim_z = floor.z + bin.wall_height;
-        let [hx, hy] = [0, 1].map(|i| (bin.size[i] / 2.0 - radius_m - CORNER_INSET_M).max(0.0));
-        // The middle first; a standing body finds a free corner when the middle is taken.
-        let spots: Vec<[f64; 2]> = if lying {
-            vec![[0.0, 0.0]]
-        } else {
-            vec![[0.0, 0.0], [hx, hy], [-hx, -hy], [hx, -hy], [-hx, hy]]
-        };
-        // A lying body along a diagonal first when the bin holds something, then at the usual
-        // yaws.
-        let yaws: Vec<f64> = if lying && !in_bin.is_empty() {
-            self.yaws_along_diagonals(carried, bin)
-                .into_iter()
-                .chain(PLACE_YAWS_DEG)
-                .collect()
-        } else {
-            PLACE_YAWS_DEG.to_vec()
-        };
-        let limits = picked.payload.tool_limits();
-        let above_z = rim_z + DROP_ABOVE_RIM_M + DROP_APPROACH_M + below_tcp_m;
-        let mut last = None;
-        let release_z = rim_z + DROP_ABOVE_RIM_M;
-        for [dx, dy] in &spots {
-            let place_z = release_z + below_tcp_m;
-            let spot = PlaceSpot {
-                xy: [floor.x + dx, floor.y + dy],
-                above_z: above_z.max(place_z),
-                place_z,
-                bin_name: &bin.name,
-                clear_of: &clear_of,
-                yaws_deg: Some(&yaws),
-            };
-            let plan = self.place_carried(
-                carried,
-                (picked.grip_m, picked.open_m),
-                &spot,
-                &picked.pick,
-                &limits,
-                &checker,
-            );
-            let plan = match plan {
-                Ok(plan) => plan,
-                Err(failure) => {
-                    last = Some(failure);
-                    continue;
-                }
-            };
-            let Some(q_release) = plan.lower.end() else {
-                continue;
-            };
-            // Let go, it comes to rest on the floor.
-            let world_from_tcp =
-                self.world_from_base * crate::kinematics::tcp_pose(&self.model, &q_release);
-            let mut world_from_shape = world_from_tcp * carried.tcp_from_shape;
-            world_from_shape.translation.vector.z -= release_z - floor.z;
-            // What the bin holds from now on is the body itself, not its perceived bounds.
-            let half_m = carried
-                .shape
-                .as_cylinder()
-                .map_or(0.0, |c| f64::from(c.half_height));
-            let shape = SharedShape::cylinder(half_m as f32, picked.grip_m as f32);
-            let top_z = world_from_shape.translation.vector.z
-                + cylinder_obstacle_top(&shape, &world_from_shape);
-            let rests = PerceivedObstacle {
-                name: "bottle",
-                world_from_shape,
-                shape,
-                top_z,
-            };
-            return Ok((plan, rests));
-        }
-        if in_bin.is_empty() {
-            return Err(last.unwrap_or_else(|| {
-                Failure::new(
-                    FailureReason::Unreachable,
-                    format!("no place in bin {}", bin.name),
-                )
-            }));
-        }
-        // No spot clear of what the bin holds: over its middle all the same (the bodies in it
-        // have seldom come to rest where they were let go; a drop onto them ends in the bin
-        // about as often as not, measured in docs/removal.md).
-        self.plan_drop(picked, bin, &[])
-    }
-
-    /// Tool yaws at a place (deg, in 1 degree steps) that put the carried body's axis along one
-    /// of `bin`'s diagonals, the longest line a lying body finds in it.
-    fn yaws_along_diagonals(&self, carried: &Carried, bin: &BinBody) -> Vec<f64> {
-        let diagonal = bin.size[1].atan2(bin.size[0]);
-        let here = Vector3::new(bin.floor_center.x, bin.floor_center.y, bin.floor_center.z);
-        let base_here = self.world_from_base.inverse() * nalgebra::Point3::from(here);
-        let mut yaws = Vec::new();
-        for yaw_deg in (0..360).map(f64::from) {
-            let base_from_tcp = self.base_from_tcp(base_here.coords, yaw_deg.to_radians(), 0.0);
-            let axis = (self.world_from_base * base_from_tcp * carried.tcp_from_shape).rotation
-                * Vector3::y();
-            let heading = axis.y.atan2(axis.x);
-            let off = |target: f64| {
-                // Distance between headings as lines (a half turn apart are one line).
-                let d = (heading - target).rem_euclid(std::f64::consts::PI);
-                d.min(std::f64::consts::PI - d)
-            };
-            if off(-diagonal) < 0.5_f64.to_radians() || off(diagonal) < 0.5_f64.to_radians() {
-                yaws.push(yaw_deg);
-            }
-        }
-        yaws
-    }
-}
-
-/// How high a cylinder shape at `world_from_shape` reaches above its centre, m.
-fn cylinder_obstacle_top(shape: &SharedShape, world_from_shape: &Isometry3<f64>) -> f64 {
-    let aabb = shape.compute_aabb(&pose_to_physics(world_from_shape));
-    f64::from(aabb.maxs.z) - world_from_shape.translation.vector.z
 }
 
 /// A bounding cylinder along the axis `axis` through `centre` as a perceived obstacle (the

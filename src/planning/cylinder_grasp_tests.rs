@@ -326,9 +326,9 @@ fn a_picked_bottle_is_let_go_just_above_the_rim_over_the_bins_middle() {
                 "draw {draw}, lying {lying}: let go with its bottom at {lowest_z:.3} m, rim at \
                  {rim_z:.3} m"
             );
-            // An empty bin: over its middle.
-            let tcp = pose * picked.carried.tcp_from_shape.inverse();
-            let off = (tcp.translation.vector - bin.floor_center).xy().norm();
+            // An empty bin: the body's middle over its middle (a lying bottle is gripped off
+            // its middle, where its straight body is).
+            let off = (pose.translation.vector - bin.floor_center).xy().norm();
             assert!(
                 off < 1e-3,
                 "draw {draw}, lying {lying}: {off} m off the middle"
@@ -373,6 +373,43 @@ fn bottles_removed_one_after_another_are_let_go_clear_of_those_already_in_the_bi
                 );
             }
             in_bin.push(rests);
+        }
+    }
+}
+
+#[test]
+fn a_bottle_gripped_at_a_lean_is_let_go_as_it_stood_or_lay() {
+    // Held at a lean, a standing bottle carried with the tool pointing straight down hangs askew
+    // in the jaws; the drop undoes the grasp's lean. Drawn over bins, yaws and leans of either
+    // sign up to the grasps' 35 degrees.
+    let planner = planner();
+    let mut rng = crate::rng::SimRng::new(2605);
+    for draw in 0..6 {
+        let bin = waste_bin(&mut rng);
+        for lying in [true, false] {
+            let cylinder = bottle([0.05, -0.45], lying, rng.range(0.0, 3.0));
+            let Ok(mut picked) = planner.plan_cylinder_pick(&cylinder, &[], &home(), 1.0) else {
+                panic!("no grasp (lying {lying})");
+            };
+            // The same body as a grasp leaned by `lean` about the jaw line would hold it.
+            let lean = rng.range(10.0, 35.0).to_radians() * if draw % 2 == 0 { 1.0 } else { -1.0 };
+            picked.carried.tcp_from_shape =
+                Isometry3::rotation(Vector3::x() * lean) * picked.carried.tcp_from_shape;
+            let drop = planner.plan_drop(&picked, &bin, &[]);
+            let Ok((drop, _)) = drop else {
+                panic!("draw {draw}: no drop (lying {lying}): {drop:?}");
+            };
+            let axis = released(&planner, &picked, &drop).rotation * Vector3::y();
+            let off_deg = if lying {
+                axis.z.abs().asin().to_degrees()
+            } else {
+                axis.z.abs().min(1.0).acos().to_degrees()
+            };
+            assert!(
+                off_deg < 1.0,
+                "draw {draw}, lying {lying}, lean {:.1} deg: let go {off_deg:.1} deg off",
+                lean.to_degrees()
+            );
         }
     }
 }

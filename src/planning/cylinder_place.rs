@@ -47,6 +47,7 @@ impl PickPlanner {
                 bin_name: &bin.name,
                 clear_of: &[],
                 yaws_deg: None,
+                tilt_rad: 0.0,
             };
             self.place_carried(
                 carried,

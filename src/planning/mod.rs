@@ -2,6 +2,7 @@
 //! trajectories within the arm's limits.
 
 mod collision;
+mod cylinder_drop;
 mod cylinder_grasp;
 mod cylinder_place;
 #[cfg(test)]

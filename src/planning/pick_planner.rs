@@ -84,6 +84,8 @@ pub struct PlaceSpot<'a> {
     /// Tool yaws to try at the place, deg, in order (`None`: the right angles, then the
     /// diagonals).
     pub yaws_deg: Option<&'a [f64]>,
+    /// The tool's lean about the jaw line at the place, rad (0: pointing straight down).
+    pub tilt_rad: f64,
 }
 
 /// Clearance the carried body keeps, where it is let go, from what already lies in the bin, m.
@@ -391,6 +393,7 @@ impl PickPlanner {
             bin_name: &bin.name,
             clear_of: &[],
             yaws_deg: None,
+            tilt_rad: 0.0,
         };
         let grip = percept.part_outer_radius_m;
         let open = self.open_offset_m(percept);
@@ -420,8 +423,9 @@ impl PickPlanner {
         let mut last_hit = String::new();
         for &yaw_deg in spot.yaws_deg.unwrap_or(&PLACE_YAWS_DEG) {
             let yaw = f64::to_radians(yaw_deg);
-            let above = self.base_from_tcp(Vector3::new(floor_x, floor_y, above_z), yaw, 0.0);
-            let at = self.base_from_tcp(Vector3::new(floor_x, floor_y, place_z), yaw, 0.0);
+            let tilt = spot.tilt_rad;
+            let above = self.base_from_tcp(Vector3::new(floor_x, floor_y, above_z), yaw, tilt);
+            let at = self.base_from_tcp(Vector3::new(floor_x, floor_y, place_z), yaw, tilt);
             if !released_clear(carried, &at, spot.clear_of) {
                 last_hit = format!(
                     "the carried body would land on what is in bin {}",

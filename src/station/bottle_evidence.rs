@@ -21,6 +21,7 @@ use image::RgbImage;
 use nalgebra::{Isometry3, Point3, Vector3};
 
 use super::bottle_fit::{BottleFitter, BottlePose};
+use super::bottle_unboxed::BeltBand;
 use super::camera_percept::BottleSighting;
 use super::silhouette::box_residual_px;
 use crate::detect::Detection;
@@ -134,8 +135,13 @@ impl<'a> Evidence<'a> {
         Some(sum.map(|s| s / n))
     }
 
+    /// The frame's size in calibration pixels.
+    pub(super) fn frame_px(&self) -> (f64, f64) {
+        self.frame_px
+    }
+
     /// Whether calibration pixel `(u, v)` is not the belt; `None` outside the frame.
-    fn foreground(&self, u: f64, v: f64) -> Option<bool> {
+    pub(super) fn foreground(&self, u: f64, v: f64) -> Option<bool> {
         let (x, y) = ((u * self.scale).floor(), (v * self.scale).floor());
         let (w, h) = (
             f64::from(self.image.width()),
@@ -193,7 +199,10 @@ impl BottleFitter {
     }
 
     /// The bottle's projected outline as its axis' two ends and half its width, pixels.
-    fn capsule(&self, world_from_bottle: &Isometry3<f64>) -> Option<([f64; 2], [f64; 2], f64)> {
+    pub(super) fn capsule(
+        &self,
+        world_from_bottle: &Isometry3<f64>,
+    ) -> Option<([f64; 2], [f64; 2], f64)> {
         let c = &self.calibration;
         let a = c.project(&(world_from_bottle * Point3::new(0.0, 0.0, 0.0)))?;
         let b = c.project(&(world_from_bottle * Point3::new(0.0, 0.0, self.height_m)))?;
@@ -229,7 +238,12 @@ impl BottleFitter {
     /// The pose over standing and lying at any yaw, on places around `box_px`'s centre on the
     /// belt, whose supported body best covers the box's bright pixels; `None` when no pose is
     /// supported.
-    fn search(&self, box_px: &[f64; 4], belt_top_z_m: f64, e: &Evidence<'_>) -> Option<BottlePose> {
+    pub(super) fn search(
+        &self,
+        box_px: &[f64; 4],
+        belt_top_z_m: f64,
+        e: &Evidence<'_>,
+    ) -> Option<BottlePose> {
         let bright = bright_pixels(box_px, e);
         if bright.len() < COVER_GRID {
             return None;
@@ -324,7 +338,7 @@ impl BottleFitter {
 
     /// Whether two poses' bodies would pass through each other: their axes come nearer than a
     /// radius.
-    fn interpenetrate(&self, a: &BottlePose, b: &BottlePose) -> bool {
+    pub(super) fn interpenetrate(&self, a: &BottlePose, b: &BottlePose) -> bool {
         let (a0, a1) = self.axis_segment(a);
         let (b0, b1) = self.axis_segment(b);
         segments_distance(&a0, &a1, &b0, &b1) < self.radius_m
@@ -418,7 +432,7 @@ fn bright_pixels(box_px: &[f64; 4], e: &Evidence<'_>) -> Vec<[f64; 2]> {
 }
 
 /// Distance from `p` to the segment `a`-`b`, pixels.
-fn segment_distance(p: &[f64; 2], a: &[f64; 2], b: &[f64; 2]) -> f64 {
+pub(super) fn segment_distance(p: &[f64; 2], a: &[f64; 2], b: &[f64; 2]) -> f64 {
     let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
     let l2 = dx * dx + dy * dy;
     let t = if l2 > 0.0 {
@@ -456,8 +470,10 @@ fn segments_distance(
 
 /// The bottle sightings of a look: `boxes` (the bottle detections' indices in `detections` and
 /// boxes, calibration pixels of a `frame_px` frame) fitted by `fitter` and checked against
-/// `image`; with, per box, the index of the sighting that holds it. When the image shows too
-/// little of the belt to be read, each box is fitted alone.
+/// `image`; with, per box, the index of the sighting that holds it. With a belt `band`, the
+/// bottles no box holds are then looked for in the pixels (`BottleFitter::unboxed`) and follow
+/// the boxes' sightings. When the image shows too little of the belt to be read, each box is
+/// fitted alone.
 pub fn bottle_sightings(
     fitter: &BottleFitter,
     boxes: &[(usize, [f64; 4])],
@@ -465,11 +481,24 @@ pub fn bottle_sightings(
     image: &RgbImage,
     frame_px: (u32, u32),
     belt_top_z_m: f64,
+    band: Option<BeltBand>,
 ) -> (Vec<BottleSighting>, Vec<usize>) {
     let scale = f64::from(image.width()) / f64::from(frame_px.0);
     let all: Vec<[f64; 4]> = detections.iter().map(|d| d.box_px.map(f64::from)).collect();
     match Evidence::new(image, scale, frame_px, &all) {
-        Some(e) => fitter.sightings(boxes, belt_top_z_m, &e),
+        Some(e) => {
+            let (mut sightings, holder) = fitter.sightings(boxes, belt_top_z_m, &e);
+            if let Some(band) = band {
+                let parts: Vec<[f64; 4]> = all
+                    .iter()
+                    .enumerate()
+                    .filter(|(i, _)| !boxes.iter().any(|(k, _)| k == i))
+                    .map(|(_, b)| *b)
+                    .collect();
+                fitter.unboxed(&mut sightings, &parts, band, belt_top_z_m, &e);
+            }
+            (sightings, holder)
+        }
         None => {
             let sightings = boxes
                 .iter()

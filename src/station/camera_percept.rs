@@ -18,6 +18,7 @@ use nalgebra::Point3;
 use super::bore_floor::station_bore_params;
 use super::bottle_evidence::bottle_sightings;
 use super::bottle_fit::{BottleFitter, BottlePose};
+use super::bottle_unboxed::BeltBand;
 use super::type_reader::TypeReader;
 use crate::camera::CameraCalibration;
 use crate::detect::{
@@ -416,6 +417,11 @@ impl CameraPerception {
             &image,
             frame_px,
             belt_top_z_m,
+            // A single part's look: bottles the detector missed are looked for on the belt.
+            matches!(rule, TargetRule::NearestStation).then(|| BeltBand {
+                centre_y_m: scenario.conveyor.belt_center_m[1],
+                half_width_m: scenario.conveyor.width_m / 2.0,
+            }),
         );
         let mut at_station = target.map(|_| StationItem::Part);
         if matches!(rule, TargetRule::AtBeam(_)) {

@@ -10,6 +10,7 @@ pub mod belt_frame;
 mod bore_floor;
 mod bottle_evidence;
 pub mod bottle_fit;
+mod bottle_unboxed;
 pub mod camera_percept;
 mod frame_check;
 pub mod lying_part;
@@ -24,6 +25,7 @@ pub use belt_frame::{BeltFrame, SeenItem, TubeEnvelope};
 pub use bore_floor::{imaged_radius_px, station_bore_params};
 pub use bottle_evidence::{Evidence, MIN_SUPPORT, bottle_sightings};
 pub use bottle_fit::{BottleFitter, BottlePose};
+pub use bottle_unboxed::BeltBand;
 pub use camera_percept::{
     BottleSighting, CameraPerception, CameraPerceptionError, PartSighting, Sighting, StationItem,
     TargetRule, find_in_window, measure_found, measure_in_window, part_window,
