@@ -2,6 +2,7 @@
 //! full pitch, where its bore is found and measured on the end-face plane.
 
 use image::GrayImage;
+use nalgebra::Point3;
 
 use crate::camera::CameraCalibration;
 use crate::perception::calibration::{MeasureOnPlane, PlaneBore};
@@ -42,6 +43,67 @@ pub(super) fn union_of_overlapping(box_px: &[f64; 4], boxes: &[[f64; 4]]) -> Opt
         }
     }
     merged.then_some(union)
+}
+
+/// The end-face centre of an upright tube of `radius_m` and `height_m` standing on the belt's
+/// top at `belt_z_m` whose silhouette's box is centred where `box_px`'s is, in `calibration`'s
+/// frame; `None` when the view does not reach the belt there.
+///
+/// A part whose bore was not measured is placed from its box. The box spans the end face and
+/// the side wall the camera sees, so its centre is about the projection of the axis half way
+/// up; cast onto the end-face plane it lies off the end face's centre by half the height times
+/// the tangent of the view's angle (23 mm for an 80 mm tube seen 30° off vertical), enough for
+/// the jaws to close beside the part. Here the tube is moved on the belt until its projected
+/// box's centre meets the detected one.
+pub fn tube_from_box(
+    calibration: &CameraCalibration,
+    box_px: &[f64; 4],
+    belt_z_m: f64,
+    radius_m: f64,
+    height_m: f64,
+) -> Option<Point3<f64>> {
+    const RIM_POINTS: usize = 32;
+    let [x0, y0, x1, y1] = *box_px;
+    let target = [(x0 + x1) / 2.0, (y0 + y1) / 2.0];
+    let mid_z = belt_z_m + height_m / 2.0;
+    let mut axis = calibration
+        .pixel_to_height(target[0], target[1], mid_z)
+        .ok()?;
+    for _ in 0..6 {
+        let mut bounds = [
+            f64::INFINITY,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::NEG_INFINITY,
+        ];
+        for k in 0..RIM_POINTS {
+            let t = std::f64::consts::TAU * k as f64 / RIM_POINTS as f64;
+            for z in [belt_z_m, belt_z_m + height_m] {
+                let point =
+                    Point3::new(axis.x + radius_m * t.cos(), axis.y + radius_m * t.sin(), z);
+                let [u, v] = calibration.project(&point)?;
+                bounds = [
+                    bounds[0].min(u),
+                    bounds[1].min(v),
+                    bounds[2].max(u),
+                    bounds[3].max(v),
+                ];
+            }
+        }
+        let predicted = [(bounds[0] + bounds[2]) / 2.0, (bounds[1] + bounds[3]) / 2.0];
+        let (du, dv) = (target[0] - predicted[0], target[1] - predicted[1]);
+        if du.hypot(dv) < 0.05 {
+            break;
+        }
+        let from = calibration
+            .pixel_to_height(predicted[0], predicted[1], mid_z)
+            .ok()?;
+        let to = calibration
+            .pixel_to_height(predicted[0] + du, predicted[1] + dv, mid_z)
+            .ok()?;
+        axis += to - from;
+    }
+    Some(Point3::new(axis.x, axis.y, belt_z_m + height_m))
 }
 
 /// The area of interest of a part's box in a `frame_px` large frame: the box widened by
@@ -108,4 +170,31 @@ pub fn measure_found(
     let s = 1.0 / f64::from(window.scale);
     let [dx, dy] = window.to_frame([0.0, 0.0]);
     Some((bore.mapped(s, dx, dy), plane))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::rng::SimRng;
+
+    #[test]
+    fn boxes_of_one_part_merge_and_a_neighbour_s_do_not() {
+        let mut rng = SimRng::new(24);
+        for _ in 0..200 {
+            let [x, y] = [rng.range(0.0, 1000.0), rng.range(0.0, 800.0)];
+            let [w, h] = [rng.range(40.0, 300.0), rng.range(40.0, 300.0)];
+            let whole = [x, y, x + w, y + h];
+            // A box on most of the same part (its end face, or its wall): merged.
+            let (fw, fh) = (rng.range(0.6, 1.0), rng.range(0.6, 1.0));
+            let (ox, oy) = (rng.range(0.0, 1.0 - fw), rng.range(0.0, 1.0 - fh));
+            let inner = [x + ox * w, y + oy * h, x + (ox + fw) * w, y + (oy + fh) * h];
+            assert_eq!(union_of_overlapping(&inner, &[inner, whole]), Some(whole));
+            assert_eq!(union_of_overlapping(&whole, &[whole, inner]), Some(whole));
+            // A neighbour touching it over less than a third of its width: kept apart.
+            let shift = w * rng.range(0.7, 1.5);
+            let neighbour = [x + shift, y, x + shift + w, y + h];
+            assert_eq!(union_of_overlapping(&whole, &[whole, neighbour]), None);
+            assert_eq!(union_of_overlapping(&whole, &[whole]), None);
+        }
+    }
 }

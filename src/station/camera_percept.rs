@@ -16,7 +16,9 @@ use image::RgbImage;
 use nalgebra::Point3;
 
 use super::area_of_interest::union_of_overlapping;
-pub use super::area_of_interest::{find_in_window, measure_found, measure_in_window, part_window};
+pub use super::area_of_interest::{
+    find_in_window, measure_found, measure_in_window, part_window, tube_from_box,
+};
 use super::bottle_evidence::bottle_sightings;
 use super::bottle_fit::{BottleFitter, BottlePose};
 use super::type_reader::TypeReader;
@@ -491,7 +493,19 @@ impl CameraPerception {
             let bore = found.and_then(|(bore, window)| measure_found(bore, &window, &calibration));
             let centre_in_world = match &bore {
                 Some((_, plane)) => plane.centre_in_world,
-                None => match calibration.pixel_to_plane(centre_px[0], centre_px[1]) {
+                // Placed from its box: as the tube whose silhouette fills it, unless the frame's
+                // border cuts the box (the part is then jogged into view and looked at again).
+                None => match tube_from_box(
+                    &self.rig.calibration,
+                    &box_px,
+                    belt_top_z_m,
+                    scenario.part_types[type_index].outer_diameter_mm / 2e3,
+                    scenario.part_types[type_index].height_mm / 1e3,
+                )
+                .filter(|_| !touches_border(&box_px, frame_px))
+                .ok_or(())
+                .or_else(|_| calibration.pixel_to_plane(centre_px[0], centre_px[1]))
+                {
                     Ok(p) => p,
                     Err(_) => continue,
                 },
@@ -541,4 +555,13 @@ impl CameraPerception {
             metrology_ms,
         })
     }
+}
+
+/// Whether `box_px` reaches within 1 % of the frame's side of the border of a `frame_px` large
+/// frame (as [`Sighting::border_jog_m`] takes a box to be cut).
+fn touches_border(box_px: &[f64; 4], frame_px: (u32, u32)) -> bool {
+    let [x0, y0, x1, y1] = *box_px;
+    let (w, h) = (f64::from(frame_px.0), f64::from(frame_px.1));
+    let (mx, my) = (0.01 * w, 0.01 * h);
+    x0 <= mx || y0 <= my || x1 >= w - mx || y1 >= h - my
 }
