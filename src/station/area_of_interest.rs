@@ -176,6 +176,7 @@ pub fn measure_found(
 mod tests {
     use super::*;
     use crate::rng::SimRng;
+    use std::f64::consts::TAU;
 
     #[test]
     fn boxes_of_one_part_merge_and_a_neighbour_s_do_not() {
@@ -196,5 +197,85 @@ mod tests {
             assert_eq!(union_of_overlapping(&whole, &[whole, neighbour]), None);
             assert_eq!(union_of_overlapping(&whole, &[whole]), None);
         }
+    }
+
+    /// The silhouette box of an upright tube, from dense rim points of its two ends.
+    fn silhouette_box(
+        calibration: &CameraCalibration,
+        axis: [f64; 2],
+        belt_z: f64,
+        radius: f64,
+        height: f64,
+    ) -> Option<[f64; 4]> {
+        let mut b = [
+            f64::INFINITY,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::NEG_INFINITY,
+        ];
+        for k in 0..720 {
+            let t = std::f64::consts::TAU * f64::from(k) / 720.0;
+            for z in [belt_z, belt_z + height] {
+                let p = Point3::new(axis[0] + radius * t.cos(), axis[1] + radius * t.sin(), z);
+                let [u, v] = calibration.project(&p)?;
+                b = [b[0].min(u), b[1].min(v), b[2].max(u), b[3].max(v)];
+            }
+        }
+        Some(b)
+    }
+
+    #[test]
+    fn a_tube_is_placed_from_its_silhouette_box_under_cameras_over_the_envelope() {
+        let mut rng = SimRng::new(2424);
+        let belt_z = 0.70;
+        let (mut worst, mut worst_box_centre) = (0.0f64, 0.0f64);
+        for _ in 0..200 {
+            // A camera 0.35-1.2 m from a station, up to 35° off vertical in any direction, any
+            // roll, 35-80° wide; a tube 15-120 mm wide and 30-120 mm tall in its view.
+            let station = Point3::new(rng.range(-0.2, 0.2), rng.range(-0.6, -0.3), belt_z);
+            let (tilt, azimuth) = (rng.range(0.0, 35f64).to_radians(), rng.range(0.0, TAU));
+            let distance = rng.range(0.35, 1.2);
+            let eye = station
+                + distance
+                    * nalgebra::Vector3::new(
+                        tilt.sin() * azimuth.cos(),
+                        tilt.sin() * azimuth.sin(),
+                        tilt.cos(),
+                    );
+            let roll = rng.range(0.0, TAU);
+            let right = nalgebra::Vector3::new(roll.cos(), roll.sin(), 0.0);
+            let Some(pose) = CameraCalibration::look_at(&eye, &station, &right) else {
+                continue;
+            };
+            let fov = rng.range(35f64, 80.0).to_radians();
+            let calibration = CameraCalibration::from_fov(1280, 960, fov, pose, belt_z);
+            let (radius, height) = (rng.range(0.0075, 0.06), rng.range(0.03, 0.12));
+            let reach = 0.25 * distance;
+            let axis = [
+                station.x + rng.range(-reach, reach),
+                station.y + rng.range(-reach, reach),
+            ];
+            let Some(box_px) = silhouette_box(&calibration, axis, belt_z, radius, height) else {
+                continue;
+            };
+            let Some(face) = tube_from_box(&calibration, &box_px, belt_z, radius, height) else {
+                panic!("no place for a tube in view");
+            };
+            let error = (face.x - axis[0]).hypot(face.y - axis[1]);
+            assert!((face.z - (belt_z + height)).abs() < 1e-12);
+            worst = worst.max(error);
+            // The box centre cast onto the end-face plane, as the cell placed such parts before.
+            let centre = [(box_px[0] + box_px[2]) / 2.0, (box_px[1] + box_px[3]) / 2.0];
+            if let Ok(p) = calibration.pixel_to_height(centre[0], centre[1], belt_z + height) {
+                worst_box_centre = worst_box_centre.max((p.x - axis[0]).hypot(p.y - axis[1]));
+            }
+        }
+        eprintln!(
+            "largest error placing a tube from its box: {:.3} mm (box centre on the end face: \
+             {:.1} mm)",
+            worst * 1e3,
+            worst_box_centre * 1e3
+        );
+        assert!(worst < 2e-4, "a tube placed {:.3} mm off", worst * 1e3);
     }
 }
