@@ -62,7 +62,6 @@ pub fn tube_from_box(
     radius_m: f64,
     height_m: f64,
 ) -> Option<Point3<f64>> {
-    const RIM_POINTS: usize = 32;
     let [x0, y0, x1, y1] = *box_px;
     let target = [(x0 + x1) / 2.0, (y0 + y1) / 2.0];
     let mid_z = belt_z_m + height_m / 2.0;
@@ -70,26 +69,8 @@ pub fn tube_from_box(
         .pixel_to_height(target[0], target[1], mid_z)
         .ok()?;
     for _ in 0..6 {
-        let mut bounds = [
-            f64::INFINITY,
-            f64::INFINITY,
-            f64::NEG_INFINITY,
-            f64::NEG_INFINITY,
-        ];
-        for k in 0..RIM_POINTS {
-            let t = std::f64::consts::TAU * k as f64 / RIM_POINTS as f64;
-            for z in [belt_z_m, belt_z_m + height_m] {
-                let point =
-                    Point3::new(axis.x + radius_m * t.cos(), axis.y + radius_m * t.sin(), z);
-                let [u, v] = calibration.project(&point)?;
-                bounds = [
-                    bounds[0].min(u),
-                    bounds[1].min(v),
-                    bounds[2].max(u),
-                    bounds[3].max(v),
-                ];
-            }
-        }
+        let face = Point3::new(axis.x, axis.y, belt_z_m + height_m);
+        let bounds = tube_box(calibration, &face, radius_m, height_m)?;
         let predicted = [(bounds[0] + bounds[2]) / 2.0, (bounds[1] + bounds[3]) / 2.0];
         let (du, dv) = (target[0] - predicted[0], target[1] - predicted[1]);
         if du.hypot(dv) < 0.05 {
@@ -104,6 +85,60 @@ pub fn tube_from_box(
         axis += to - from;
     }
     Some(Point3::new(axis.x, axis.y, belt_z_m + height_m))
+}
+
+/// The silhouette box of an upright tube of `radius_m` and `height_m` whose end face's centre
+/// is `face`, from 32 points round each of its ends; `None` when one does not project.
+fn tube_box(
+    calibration: &CameraCalibration,
+    face: &Point3<f64>,
+    radius_m: f64,
+    height_m: f64,
+) -> Option<[f64; 4]> {
+    let mut bounds = [
+        f64::INFINITY,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        f64::NEG_INFINITY,
+    ];
+    for k in 0..32 {
+        let t = std::f64::consts::TAU * f64::from(k) / 32.0;
+        for z in [face.z - height_m, face.z] {
+            let point = Point3::new(face.x + radius_m * t.cos(), face.y + radius_m * t.sin(), z);
+            let [u, v] = calibration.project(&point)?;
+            bounds = [
+                bounds[0].min(u),
+                bounds[1].min(v),
+                bounds[2].max(u),
+                bounds[3].max(v),
+            ];
+        }
+    }
+    Some(bounds)
+}
+
+/// Of the catalogue's tubes (`(radius_m, height_m)` each), the one whose silhouette, placed by
+/// [`tube_from_box`], fills `box_px` best (least summed difference of width and height, px),
+/// with its end-face centre. A part whose bore was not measured is handled as it: the jaws
+/// close at its height. `None` when no tube places.
+pub fn tube_type_from_box(
+    calibration: &CameraCalibration,
+    box_px: &[f64; 4],
+    belt_z_m: f64,
+    tubes: &[(f64, f64)],
+) -> Option<(usize, Point3<f64>)> {
+    let (w, h) = (box_px[2] - box_px[0], box_px[3] - box_px[1]);
+    tubes
+        .iter()
+        .enumerate()
+        .filter_map(|(i, &(radius, height))| {
+            let face = tube_from_box(calibration, box_px, belt_z_m, radius, height)?;
+            let b = tube_box(calibration, &face, radius, height)?;
+            let misfit = ((b[2] - b[0]) - w).abs() + ((b[3] - b[1]) - h).abs();
+            Some((misfit, i, face))
+        })
+        .min_by(|a, b| a.0.total_cmp(&b.0))
+        .map(|(_, i, face)| (i, face))
 }
 
 /// The area of interest of a part's box in a `frame_px` large frame: the box widened by

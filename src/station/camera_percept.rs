@@ -15,10 +15,10 @@ use std::time::Instant;
 use image::RgbImage;
 use nalgebra::Point3;
 
-use super::area_of_interest::union_of_overlapping;
 pub use super::area_of_interest::{
     find_in_window, measure_found, measure_in_window, part_window, tube_from_box,
 };
+use super::area_of_interest::{tube_type_from_box, union_of_overlapping};
 use super::bottle_evidence::bottle_sightings;
 use super::bottle_fit::{BottleFitter, BottlePose};
 use super::type_reader::TypeReader;
@@ -159,6 +159,8 @@ pub struct CameraPerception {
     /// the bulkiest, until the target is measured).
     type_of_class: Vec<Option<usize>>,
     type_reader: TypeReader,
+    /// Each part type's outer radius and height, m.
+    tube_sizes: Vec<(f64, f64)>,
     bottle_class: Option<usize>,
     bottle_fitter: BottleFitter,
 }
@@ -276,6 +278,11 @@ impl CameraPerception {
             ),
             type_of_class,
             type_reader,
+            tube_sizes: scenario
+                .part_types
+                .iter()
+                .map(|t| (t.outer_diameter_mm / 2e3, t.height_mm / 1e3))
+                .collect(),
             bottle_class: FOREIGN_CLASSES.iter().find_map(|name| class_index(name)),
             bottle_fitter,
         })
@@ -482,7 +489,21 @@ impl CameraPerception {
                             &window.calibration(&self.rig.calibration),
                             belt_top_z_m,
                         ),
-                        None => self.type_reader.unmeasured(),
+                        None => {
+                            let mut decision = self.type_reader.unmeasured();
+                            // Handled as the catalogue's tube whose silhouette fills the box.
+                            if let Some((best, _)) = tube_type_from_box(
+                                &self.rig.calibration,
+                                &box_px,
+                                belt_top_z_m,
+                                &self.tube_sizes,
+                            )
+                            .filter(|_| !touches_border(&box_px, frame_px))
+                            {
+                                decision.type_index = best;
+                            }
+                            decision
+                        }
                     };
                     (decision.type_index, decision.unidentified)
                 }
