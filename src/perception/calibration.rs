@@ -5,7 +5,7 @@ pub use crate::camera::CameraCalibration;
 use crate::perception::bore::Bore;
 use crate::perception::circle_fit::fit_geometric_over_angle;
 use crate::perception::error::PerceptionError;
-use crate::perception::roundness::filtered_roundness_bridged;
+use crate::perception::roundness_noise::noise_adjusted_roundness_bridged;
 use nalgebra::Point3;
 
 /// A bore measured on the end-face plane, metres.
@@ -15,7 +15,8 @@ pub struct PlaneBore {
     pub centre_in_world: Point3<f64>,
     /// Diameter of the fitted circle.
     pub diameter_m: f64,
-    /// `Rmax - Rmin` about the fitted centre.
+    /// `Rmax - Rmin` about the fitted centre, of the profile low-passed to the cutoff with the
+    /// edge noise taken out of each harmonic ([`crate::perception::roundness_noise`]).
     pub roundness_m: f64,
     /// One-sigma uncertainty of each centre coordinate.
     pub centre_sigma_m: f64,
@@ -82,14 +83,18 @@ impl MeasureOnPlane for CameraCalibration {
         let points_on_plane = on_plane(&bore.edge_points_px)?;
         let bridges_on_plane = on_plane(&bore.bridge_points_px)?;
         let fit = fit_geometric_over_angle(&points_on_plane)?;
-        let profile =
-            filtered_roundness_bridged(&points_on_plane, &bridges_on_plane, fit.centre, max_upr)?;
+        let (profile, roundness) = noise_adjusted_roundness_bridged(
+            &points_on_plane,
+            &bridges_on_plane,
+            fit.centre,
+            max_upr,
+        )?;
         let n = points_on_plane.len() as f64;
         let sigma = profile.noise_sigma();
         Ok(PlaneBore {
             centre_in_world: Point3::new(fit.centre[0], fit.centre[1], self.end_face_height_m),
             diameter_m: 2.0 * fit.radius,
-            roundness_m: profile.roundness,
+            roundness_m: roundness,
             centre_sigma_m: sigma * (2.0 / n).sqrt(),
             diameter_sigma_m: 2.0 * sigma / n.sqrt(),
             roundness_sigma_m: profile.roundness_sigma(),

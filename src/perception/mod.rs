@@ -34,6 +34,7 @@ pub mod rim;
 pub mod rim_stain;
 pub mod robust_series;
 pub mod roundness;
+pub mod roundness_noise;
 pub mod running_sums;
 pub mod scene_draw;
 pub mod scene_heavy;

@@ -225,8 +225,21 @@ fn filtered_roundness_kernel(
         .iter()
         .zip(&explained)
         .fold(0.0, |sum, (p, &e)| sum + (p.1 - (mean_radius + e)).powi(2));
+    let roundness = series_range(mean_radius, &harmonics);
+    RoundnessProfile {
+        mean_radius,
+        harmonics,
+        roundness,
+        residual_rms: (sum_sq / n as f64).sqrt(),
+        point_count: n,
+    }
+}
+
+/// `Rmax - Rmin` of the series `mean + sum_k a_k cos k theta + b_k sin k theta`, sampled densely.
+#[inline(always)]
+pub(crate) fn series_range(mean_radius: f64, harmonics: &[(f64, f64)]) -> f64 {
     // Dense enough that the sampled extremes of a K-UPR series are within ~1e-3 of the true ones.
-    let samples = 32 * (k_max + 1);
+    let samples = 32 * (harmonics.len() + 1);
     // Sample directions by rotating one step at a time (no sine and cosine per sample; the
     // rounding this accumulates over a revolution is far below a micro-radian).
     let (step_sin, step_cos) = (TAU / samples as f64).sin_cos();
@@ -243,7 +256,7 @@ fn filtered_roundness_kernel(
     // own `(cos k theta, sin k theta)` as `series_along` does.
     let mut radius = vec![mean_radius; samples];
     let mut rotated: Vec<[f64; 2]> = vec![[1.0, 0.0]; samples];
-    for &(a, b) in &harmonics {
+    for &(a, b) in harmonics {
         for ((r, [c, s]), &[c1, s1]) in radius.iter_mut().zip(&mut rotated).zip(&units) {
             let c_next = *c * c1 - *s * s1;
             *s = *s * c1 + *c * s1;
@@ -256,13 +269,7 @@ fn filtered_roundness_kernel(
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &r| {
             (lo.min(r), hi.max(r))
         });
-    RoundnessProfile {
-        mean_radius,
-        harmonics,
-        roundness: r_max - r_min,
-        residual_rms: (sum_sq / n as f64).sqrt(),
-        point_count: n,
-    }
+    r_max - r_min
 }
 
 /// [`filtered_roundness`] of `points` about `centre`, with `bridges` (points of a model of the

@@ -12,9 +12,13 @@
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
-use image::{GrayImage, RgbImage};
+use image::RgbImage;
 use nalgebra::Point3;
 
+pub use super::area_of_interest::{
+    find_in_window, measure_found, measure_in_window, part_window, tube_from_box,
+};
+use super::area_of_interest::{tube_type_from_box, union_of_overlapping};
 use super::bore_floor::station_bore_params;
 use super::bottle_evidence::bottle_sightings;
 use super::bottle_fit::{BottleFitter, BottlePose};
@@ -24,15 +28,12 @@ use crate::camera::CameraCalibration;
 use crate::detect::{
     Detection, Detector, DetectorModel, FOREIGN_CLASSES, SharedDetector, is_foreign_class,
 };
-use crate::perception::calibration::{MeasureOnPlane, PlaneBore};
-use crate::perception::roundness::DEFAULT_MAX_UPR;
+use crate::perception::calibration::PlaneBore;
 use crate::perception::{Bore, BoreDetector};
-use crate::render::{CameraRig, Renderer, RendererOptions, Scene, SensorWindow, Shot};
+use crate::render::{CameraRig, Renderer, RendererOptions, Scene, Shot};
 use crate::rng::SimRng;
 use crate::scenario::{Scenario, TypeBy};
 
-/// Share of a part box's side added on every side before the metrology looks inside it.
-const BOX_MARGIN: f64 = 0.15;
 /// A detector box counts as covering a point of the photo-eye's beam within this margin, px.
 const BEAM_MARGIN_PX: f64 = 2.0;
 /// Foreshortening (image roundness over radius of a round bore seen off the vertical) the bore
@@ -160,6 +161,8 @@ pub struct CameraPerception {
     /// the bulkiest, until the target is measured).
     type_of_class: Vec<Option<usize>>,
     type_reader: TypeReader,
+    /// Each part type's outer radius and height, m.
+    tube_sizes: Vec<(f64, f64)>,
     bottle_class: Option<usize>,
     bottle_fitter: BottleFitter,
 }
@@ -279,6 +282,11 @@ impl CameraPerception {
             )),
             type_of_class,
             type_reader,
+            tube_sizes: scenario
+                .part_types
+                .iter()
+                .map(|t| (t.outer_diameter_mm / 2e3, t.height_mm / 1e3))
+                .collect(),
             bottle_class: FOREIGN_CLASSES.iter().find_map(|name| class_index(name)),
             bottle_fitter,
         })
@@ -438,6 +446,10 @@ impl CameraPerception {
         }
         let mut target_sighting = None;
         let mut other_parts = Vec::new();
+        let part_boxes: Vec<[f64; 4]> = parts
+            .iter()
+            .map(|(index, _, _)| detections[*index].box_px.map(f64::from))
+            .collect();
         for (k, (index, type_index, centre_px)) in parts.into_iter().enumerate() {
             let is_target = target.is_some_and(|(_, t)| t == k);
             // Only the target's bore is measured, in its area of interest; other parts are
@@ -447,23 +459,36 @@ impl CameraPerception {
             let window = is_target
                 .then(|| part_window(&box_px, frame_px, self.roi_scale))
                 .flatten();
-            let found = match window {
-                Some(window) => {
-                    let rendered = Instant::now();
-                    let window_image = shot.render_window(renderer, &gpu, &window)?;
-                    window_render_ms += rendered.elapsed().as_secs_f64() * 1e3;
-                    let gray = image::imageops::grayscale(&window_image);
-                    let bore_detector = bore_detector_at(
-                        &self.bore_detector,
-                        &self.rig.calibration,
-                        &box_px,
-                        belt_top_z_m,
-                    );
-                    find_in_window(&bore_detector, &gray, &window, &box_px)
-                        .map(|bore| (bore, window))
-                }
+            let mut find_in = |box_px: &[f64; 4]| -> Result<_, CameraPerceptionError> {
+                let Some(window) = part_window(box_px, frame_px, self.roi_scale) else {
+                    return Ok(None);
+                };
+                let rendered = Instant::now();
+                let window_image = shot.render_window(renderer, &gpu, &window)?;
+                window_render_ms += rendered.elapsed().as_secs_f64() * 1e3;
+                let gray = image::imageops::grayscale(&window_image);
+                let bore_detector = bore_detector_at(
+                    &self.bore_detector,
+                    &self.rig.calibration,
+                    box_px,
+                    belt_top_z_m,
+                );
+                Ok(find_in_window(&bore_detector, &gray, &window, box_px)
+                    .map(|bore| (bore, window)))
+            };
+            let mut found = match window {
+                Some(_) => find_in(&box_px)?,
                 None => None,
             };
+            // The same part boxed twice (a box on its end face and one on the whole tube, say,
+            // from a steep camera): the bore may lie outside the smaller box or be cut by its
+            // window, so it is sought again in the union of the boxes that overlap the target's.
+            if is_target
+                && found.is_none()
+                && let Some(union) = union_of_overlapping(&box_px, &part_boxes)
+            {
+                found = find_in(&union)?;
+            }
             let (type_index, unidentified) = match self.type_reader.type_by() {
                 TypeBy::Detector => (type_index, None),
                 TypeBy::Measurement if is_target => {
@@ -473,7 +498,21 @@ impl CameraPerception {
                             &window.calibration(&self.rig.calibration),
                             belt_top_z_m,
                         ),
-                        None => self.type_reader.unmeasured(),
+                        None => {
+                            let mut decision = self.type_reader.unmeasured();
+                            // Handled as the catalogue's tube whose silhouette fills the box.
+                            if let Some((best, _)) = tube_type_from_box(
+                                &self.rig.calibration,
+                                &box_px,
+                                belt_top_z_m,
+                                &self.tube_sizes,
+                            )
+                            .filter(|_| !touches_border(&box_px, frame_px))
+                            {
+                                decision.type_index = best;
+                            }
+                            decision
+                        }
                     };
                     (decision.type_index, decision.unidentified)
                 }
@@ -484,7 +523,19 @@ impl CameraPerception {
             let bore = found.and_then(|(bore, window)| measure_found(bore, &window, &calibration));
             let centre_in_world = match &bore {
                 Some((_, plane)) => plane.centre_in_world,
-                None => match calibration.pixel_to_plane(centre_px[0], centre_px[1]) {
+                // Placed from its box: as the tube whose silhouette fills it, unless the frame's
+                // border cuts the box (the part is then jogged into view and looked at again).
+                None => match tube_from_box(
+                    &self.rig.calibration,
+                    &box_px,
+                    belt_top_z_m,
+                    scenario.part_types[type_index].outer_diameter_mm / 2e3,
+                    scenario.part_types[type_index].height_mm / 1e3,
+                )
+                .filter(|_| !touches_border(&box_px, frame_px))
+                .ok_or(())
+                .or_else(|_| calibration.pixel_to_plane(centre_px[0], centre_px[1]))
+                {
                     Ok(p) => p,
                     Err(_) => continue,
                 },
@@ -536,68 +587,11 @@ impl CameraPerception {
     }
 }
 
-/// The area of interest of a part's box in a `frame_px` large frame: the box widened by
-/// `BOX_MARGIN` (15 %) a side, on a sensor with `roi_scale` pixels per frame pixel.
-pub fn part_window(
-    box_px: &[f64; 4],
-    frame_px: (u32, u32),
-    roi_scale: u32,
-) -> Option<SensorWindow> {
+/// Whether `box_px` reaches within 1 % of the frame's side of the border of a `frame_px` large
+/// frame (as [`Sighting::border_jog_m`] takes a box to be cut).
+fn touches_border(box_px: &[f64; 4], frame_px: (u32, u32)) -> bool {
     let [x0, y0, x1, y1] = *box_px;
-    let (mx, my) = ((x1 - x0) * BOX_MARGIN, (y1 - y0) * BOX_MARGIN);
-    SensorWindow::covering([x0 - mx, y0 - my, x1 + mx, y1 + my], frame_px, roi_scale)
-}
-
-/// Finds the bore in a part's area of interest (`gray`, read through `window`) and measures it
-/// on the end-face plane of `calibration` (the frame's camera); the bore nearest the centre of
-/// the part's box (frame pixels) wins. The bore comes back in frame pixels. `None` when there
-/// is none.
-pub fn measure_in_window(
-    bore_detector: &BoreDetector,
-    gray: &GrayImage,
-    window: &SensorWindow,
-    box_px: &[f64; 4],
-    calibration: &CameraCalibration,
-) -> Option<(Bore, PlaneBore)> {
-    let bore = find_in_window(bore_detector, gray, window, box_px)?;
-    measure_found(bore, window, calibration)
-}
-
-/// The bore in a part's area of interest (`gray`, read through `window`) nearest the centre of
-/// the part's box (frame pixels), in the window's pixels.
-pub fn find_in_window(
-    bore_detector: &BoreDetector,
-    gray: &GrayImage,
-    window: &SensorWindow,
-    box_px: &[f64; 4],
-) -> Option<Bore> {
-    let [x0, y0, x1, y1] = *box_px;
-    let centre = [(x0 + x1) / 2.0, (y0 + y1) / 2.0];
-    let in_box = |p: [f64; 2]| (x0..=x1).contains(&p[0]) && (y0..=y1).contains(&p[1]);
-    let distance = |b: &Bore| {
-        let [x, y] = window.to_frame(b.centre_px);
-        (x - centre[0]).hypot(y - centre[1])
-    };
-    bore_detector
-        .detect(gray)
-        .ok()?
-        .into_iter()
-        .filter(|b| in_box(window.to_frame(b.centre_px)))
-        .min_by(|a, b| distance(a).total_cmp(&distance(b)))
-}
-
-/// Measures `bore`, found in the area of interest `window`, on the end-face plane of
-/// `calibration` (the frame's camera); the bore comes back in frame pixels.
-pub fn measure_found(
-    bore: Bore,
-    window: &SensorWindow,
-    calibration: &CameraCalibration,
-) -> Option<(Bore, PlaneBore)> {
-    let plane = window
-        .calibration(calibration)
-        .measure_on_plane(&bore, DEFAULT_MAX_UPR)
-        .ok()?;
-    let s = 1.0 / f64::from(window.scale);
-    let [dx, dy] = window.to_frame([0.0, 0.0]);
-    Some((bore.mapped(s, dx, dy), plane))
+    let (w, h) = (f64::from(frame_px.0), f64::from(frame_px.1));
+    let (mx, my) = (0.01 * w, 0.01 * h);
+    x0 <= mx || y0 <= my || x1 >= w - mx || y1 >= h - my
 }

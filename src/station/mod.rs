@@ -6,6 +6,7 @@
 //! from look to look (`TrackSet`). Everything here reads images and calibrations, never the
 //! world.
 
+mod area_of_interest;
 pub mod belt_frame;
 mod bore_floor;
 mod bottle_evidence;
