@@ -295,17 +295,17 @@ fn ring_median(
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use image::Rgb;
     use nalgebra::Vector3;
 
     use super::*;
     use crate::rng::SimRng;
 
-    const BELT_TOP_Z: f64 = 0.70;
+    pub(in crate::station) const BELT_TOP_Z: f64 = 0.70;
 
     /// The default camera: 0.58 m above the station, 44 degrees across 1280 x 960 pixels.
-    fn fitter() -> BottleFitter {
+    pub(in crate::station) fn fitter() -> BottleFitter {
         let station = Point3::new(0.05, -0.45, BELT_TOP_Z);
         let eye = station + Vector3::new(0.0, 0.0, 0.58);
         let pose = CameraCalibration::look_at(&eye, &station, &Vector3::x()).expect("pose");

@@ -219,29 +219,11 @@ mod tests {
     use nalgebra::{Isometry3, Point3, Vector3};
 
     use super::{BeltBand, patches};
-    use crate::camera::CameraCalibration;
     use crate::detect::Detection;
     use crate::rng::SimRng;
-    use crate::scenario::BottleSection;
     use crate::station::bottle_evidence::{bottle_sightings, segment_distance};
     use crate::station::bottle_fit::BottleFitter;
-
-    const BELT_TOP_Z: f64 = 0.70;
-
-    /// The default camera: 0.58 m above the station, 44 degrees across 1280 x 960 pixels.
-    fn fitter() -> BottleFitter {
-        let station = Point3::new(0.05, -0.45, BELT_TOP_Z);
-        let eye = station + Vector3::new(0.0, 0.0, 0.58);
-        let pose = CameraCalibration::look_at(&eye, &station, &Vector3::x()).expect("pose");
-        let calibration =
-            CameraCalibration::from_fov(1280, 960, 44f64.to_radians(), pose, BELT_TOP_Z);
-        let bottle = BottleSection {
-            radius_m: 0.033,
-            height_m: 0.2,
-            ..BottleSection::default()
-        };
-        BottleFitter::new(calibration, &bottle)
-    }
+    use crate::station::bottle_fit::tests::{BELT_TOP_Z, fitter};
 
     /// A 640 x 480 frame (half the calibration's pixels) of a dark belt with a bright part box
     /// and, when `bottle` is given, that bottle's outline filled bright.
