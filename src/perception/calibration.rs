@@ -18,6 +18,9 @@ pub struct PlaneBore {
     /// `Rmax - Rmin` about the fitted centre, of the profile low-passed to the cutoff with the
     /// edge noise taken out of each harmonic ([`crate::perception::roundness_noise`]).
     pub roundness_m: f64,
+    /// `Rmax - Rmin` about the fitted centre of the profile low-passed to the cutoff, the edge
+    /// noise left in: the image's `roundness` on the plane (what `twincell measure` reports).
+    pub raw_roundness_m: f64,
     /// One-sigma uncertainty of each centre coordinate.
     pub centre_sigma_m: f64,
     /// One-sigma uncertainty of the diameter.
@@ -95,6 +98,7 @@ impl MeasureOnPlane for CameraCalibration {
             centre_in_world: Point3::new(fit.centre[0], fit.centre[1], self.end_face_height_m),
             diameter_m: 2.0 * fit.radius,
             roundness_m: roundness,
+            raw_roundness_m: profile.roundness,
             centre_sigma_m: sigma * (2.0 / n).sqrt(),
             diameter_sigma_m: 2.0 * sigma / n.sqrt(),
             roundness_sigma_m: profile.roundness_sigma(),

@@ -140,7 +140,8 @@ pub(super) fn circle_out(
                     plane.centre_in_world.x * 1e3,
                     plane.centre_in_world.y * 1e3,
                     plane.diameter_m * 0.5e3,
-                    plane.roundness_m * 1e3,
+                    // Rmax - Rmin on the plane, as the image's `roundness` is in pixels.
+                    plane.raw_roundness_m * 1e3,
                     plane.roundness_sigma_m * 1e3,
                     1e3 / px_per_m,
                 )
