@@ -162,7 +162,7 @@ pub fn measure<'py>(
                 out.set_item("cx_mm", plane.centre_in_world.x * 1e3)?;
                 out.set_item("cy_mm", plane.centre_in_world.y * 1e3)?;
                 out.set_item("r_mm", plane.diameter_m * 0.5e3)?;
-                out.set_item("roundness_mm", plane.roundness_m * 1e3)?;
+                out.set_item("roundness_mm", plane.raw_roundness_m * 1e3)?;
                 out.set_item("sigma_roundness_mm", plane.roundness_sigma_m * 1e3)?;
             }
             Ok(out)
