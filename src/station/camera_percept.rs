@@ -23,6 +23,7 @@ use super::bore_floor::station_bore_params;
 use super::bottle_evidence::bottle_sightings;
 use super::bottle_fit::{BottleFitter, BottlePose};
 use super::bottle_unboxed::BeltBand;
+use super::sighting_percept::touched_borders;
 use super::type_reader::TypeReader;
 use crate::camera::CameraCalibration;
 use crate::detect::{
@@ -161,8 +162,6 @@ pub struct CameraPerception {
     /// the bulkiest, until the target is measured).
     type_of_class: Vec<Option<usize>>,
     type_reader: TypeReader,
-    /// Each part type's outer radius and height, m.
-    tube_sizes: Vec<(f64, f64)>,
     bottle_class: Option<usize>,
     bottle_fitter: BottleFitter,
 }
@@ -282,11 +281,6 @@ impl CameraPerception {
             )),
             type_of_class,
             type_reader,
-            tube_sizes: scenario
-                .part_types
-                .iter()
-                .map(|t| (t.outer_diameter_mm / 2e3, t.height_mm / 1e3))
-                .collect(),
             bottle_class: FOREIGN_CLASSES.iter().find_map(|name| class_index(name)),
             bottle_fitter,
         })
@@ -455,7 +449,9 @@ impl CameraPerception {
             // Only the target's bore is measured, in its area of interest; other parts are
             // obstacles.
             let box_px = detections[index].box_px.map(f64::from);
-            let frame_px = (self.rig.width_px, self.rig.height_px);
+            // A box the frame's border cuts is not placed from its silhouette: the part is
+            // jogged into view and looked at again (`Sighting::border_jog_m`).
+            let cut = !touched_borders(&box_px, frame_px).is_empty();
             let window = is_target
                 .then(|| part_window(&box_px, frame_px, self.roi_scale))
                 .flatten();
@@ -501,13 +497,17 @@ impl CameraPerception {
                         None => {
                             let mut decision = self.type_reader.unmeasured();
                             // Handled as the catalogue's tube whose silhouette fills the box.
-                            if let Some((best, _)) = tube_type_from_box(
-                                &self.rig.calibration,
-                                &box_px,
-                                belt_top_z_m,
-                                &self.tube_sizes,
-                            )
-                            .filter(|_| !touches_border(&box_px, frame_px))
+                            let tubes: Vec<(f64, f64)> = scenario
+                                .part_types
+                                .iter()
+                                .map(|t| (t.outer_diameter_mm / 2e3, t.height_mm / 1e3))
+                                .collect();
+                            let calibration = &self.rig.calibration;
+                            if let Some((best, _)) = (!cut)
+                                .then(|| {
+                                    tube_type_from_box(calibration, &box_px, belt_top_z_m, &tubes)
+                                })
+                                .flatten()
                             {
                                 decision.type_index = best;
                             }
@@ -525,20 +525,29 @@ impl CameraPerception {
                 Some((_, plane)) => plane.centre_in_world,
                 // Placed from its box: as the tube whose silhouette fills it, unless the frame's
                 // border cuts the box (the part is then jogged into view and looked at again).
-                None => match tube_from_box(
-                    &self.rig.calibration,
-                    &box_px,
-                    belt_top_z_m,
-                    scenario.part_types[type_index].outer_diameter_mm / 2e3,
-                    scenario.part_types[type_index].height_mm / 1e3,
-                )
-                .filter(|_| !touches_border(&box_px, frame_px))
-                .ok_or(())
-                .or_else(|_| calibration.pixel_to_plane(centre_px[0], centre_px[1]))
-                {
-                    Ok(p) => p,
-                    Err(_) => continue,
-                },
+                None => {
+                    let kind = &scenario.part_types[type_index];
+                    let (radius_m, height_m) = (kind.outer_diameter_mm / 2e3, kind.height_mm / 1e3);
+                    let rig_calibration = &self.rig.calibration;
+                    let from_box = (!cut)
+                        .then(|| {
+                            tube_from_box(
+                                rig_calibration,
+                                &box_px,
+                                belt_top_z_m,
+                                radius_m,
+                                height_m,
+                            )
+                        })
+                        .flatten();
+                    match from_box {
+                        Some(p) => p,
+                        None => match calibration.pixel_to_plane(centre_px[0], centre_px[1]) {
+                            Ok(p) => p,
+                            Err(_) => continue,
+                        },
+                    }
+                }
             };
             let nominal_m = scenario.part_types[type_index].bore_diameter_mm / 1000.0;
             let by_detector = self.type_reader.type_by() == TypeBy::Detector;
@@ -585,13 +594,4 @@ impl CameraPerception {
             metrology_ms,
         })
     }
-}
-
-/// Whether `box_px` reaches within 1 % of the frame's side of the border of a `frame_px` large
-/// frame (as [`Sighting::border_jog_m`] takes a box to be cut).
-fn touches_border(box_px: &[f64; 4], frame_px: (u32, u32)) -> bool {
-    let [x0, y0, x1, y1] = *box_px;
-    let (w, h) = (f64::from(frame_px.0), f64::from(frame_px.1));
-    let (mx, my) = (0.01 * w, 0.01 * h);
-    x0 <= mx || y0 <= my || x1 >= w - mx || y1 >= h - my
 }

@@ -67,19 +67,8 @@ impl Sighting {
                 if target.bore.is_some() {
                     return None;
                 }
-                let [x0, y0, x1, y1] = self.detections.get(target.detection)?.box_px.map(f64::from);
-                let (mx, my) = (BORDER_TOUCH_SHARE * w, BORDER_TOUCH_SHARE * h);
-                // The image borders the box touches, as inward unit normals.
-                let touched: Vec<[f64; 2]> = [
-                    (x0 <= mx, [1.0, 0.0]),
-                    (y0 <= my, [0.0, 1.0]),
-                    (x1 >= w - mx, [-1.0, 0.0]),
-                    (y1 >= h - my, [0.0, -1.0]),
-                ]
-                .iter()
-                .filter(|(t, _)| *t)
-                .map(|(_, n)| *n)
-                .collect();
+                let box_px = self.detections.get(target.detection)?.box_px.map(f64::from);
+                let touched = touched_borders(&box_px, frame_px);
                 if touched.is_empty() {
                     return None;
                 }
@@ -168,4 +157,21 @@ impl Sighting {
             obstacles,
         })
     }
+}
+
+/// The borders of a `frame_px` large frame that `box_px` reaches within
+/// [`BORDER_TOUCH_SHARE`] of (a box cut by the image's edge), as inward unit normals.
+pub(super) fn touched_borders(box_px: &[f64; 4], frame_px: (u32, u32)) -> Vec<[f64; 2]> {
+    let [x0, y0, x1, y1] = *box_px;
+    let (w, h) = (f64::from(frame_px.0), f64::from(frame_px.1));
+    let (mx, my) = (BORDER_TOUCH_SHARE * w, BORDER_TOUCH_SHARE * h);
+    [
+        (x0 <= mx, [1.0, 0.0]),
+        (y0 <= my, [0.0, 1.0]),
+        (x1 >= w - mx, [-1.0, 0.0]),
+        (y1 >= h - my, [0.0, -1.0]),
+    ]
+    .into_iter()
+    .filter_map(|(touches, inward)| touches.then_some(inward))
+    .collect()
 }
