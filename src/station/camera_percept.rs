@@ -452,9 +452,6 @@ impl CameraPerception {
             // A box the frame's border cuts is not placed from its silhouette: the part is
             // jogged into view and looked at again (`Sighting::border_jog_m`).
             let cut = !touched_borders(&box_px, frame_px).is_empty();
-            let window = is_target
-                .then(|| part_window(&box_px, frame_px, self.roi_scale))
-                .flatten();
             let mut find_in = |box_px: &[f64; 4]| -> Result<_, CameraPerceptionError> {
                 let Some(window) = part_window(box_px, frame_px, self.roi_scale) else {
                     return Ok(None);
@@ -472,10 +469,7 @@ impl CameraPerception {
                 Ok(find_in_window(&bore_detector, &gray, &window, box_px)
                     .map(|bore| (bore, window)))
             };
-            let mut found = match window {
-                Some(_) => find_in(&box_px)?,
-                None => None,
-            };
+            let mut found = if is_target { find_in(&box_px)? } else { None };
             // The same part boxed twice (a box on its end face and one on the whole tube, say,
             // from a steep camera): the bore may lie outside the smaller box or be cut by its
             // window, so it is sought again in the union of the boxes that overlap the target's.
