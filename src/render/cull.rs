@@ -8,7 +8,9 @@
 
 use nalgebra::{Isometry3, Point3, Vector3};
 
+use super::exposure::Exposure;
 use super::mesh::MeshVertex;
+use super::pipeline::{FAR_M, NEAR_M};
 use crate::camera::CameraCalibration;
 
 /// Meshes with at most this many triangles are checked for being closed and convex, so they can
@@ -114,6 +116,18 @@ pub(super) struct View {
 }
 
 impl View {
+    /// The view a render through `exposure` culls with: its camera and image, between the
+    /// pipeline's near and far planes.
+    pub(super) fn of_exposure(exposure: &Exposure) -> Self {
+        Self::new(
+            &exposure.camera,
+            exposure.width_px,
+            exposure.height_px,
+            NEAR_M,
+            FAR_M,
+        )
+    }
+
     /// The view of `camera` over a `width_px` x `height_px` image between two depths.
     pub(super) fn new(
         camera: &CameraCalibration,

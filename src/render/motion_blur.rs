@@ -20,7 +20,6 @@ use nalgebra::Vector3;
 use super::cull::View;
 use super::error::RenderError;
 use super::gpu_scene::GpuScene;
-use super::pipeline::{FAR_M, NEAR_M};
 use super::renderer::{Exposure, Renderer};
 use super::scene::Scene;
 use crate::cell::Cell;
@@ -169,14 +168,7 @@ fn sub_frames_for(travel_m: f64, step_m: f64) -> usize {
 fn seen(gpu: &GpuScene, exposure: &Exposure) -> Vec<usize> {
     let camera_from_world = exposure.camera.world_from_camera.inverse();
     let camera_from_object: Vec<_> = gpu.poses.iter().map(|p| camera_from_world * p).collect();
-    let view = View::new(
-        &exposure.camera,
-        exposure.width_px,
-        exposure.height_px,
-        NEAR_M,
-        FAR_M,
-    );
-    view.visible(&gpu.bounds, &camera_from_object, &gpu.draw_order)
+    View::of_exposure(exposure).visible(&gpu.bounds, &camera_from_object, &gpu.draw_order)
 }
 
 /// The sub-frame step of a render through `exposure`'s camera: [`SUB_FRAME_STEP_PX`] of its

@@ -18,8 +18,8 @@ pub use super::exposure::{
 pub use super::gpu_scene::GpuScene;
 use super::gpu_scene::ObjectRange;
 use super::pipeline::{
-    COLOUR_FORMAT, DEPTH_FORMAT, FAR_M, Globals, GpuVertex, ID_FORMAT, NEAR_M, OBJECT_STRIDE,
-    ObjectUniform, build_pipeline, clip_from_camera, gpu_vertex,
+    COLOUR_FORMAT, DEPTH_FORMAT, Globals, GpuVertex, ID_FORMAT, OBJECT_STRIDE, ObjectUniform,
+    build_pipeline, clip_from_camera, gpu_vertex,
 };
 use super::scene::{ObjectKind, Scene, SceneObject};
 use super::targets::{TargetCache, Targets, padded_row, rgb_from_rgba};
@@ -428,7 +428,7 @@ impl Renderer {
             self.queue
                 .write_buffer(buffer, 0, bytemuck::cast_slice(&uniforms));
         }
-        let view = View::new(camera, exposure.width_px, exposure.height_px, NEAR_M, FAR_M);
+        let view = View::of_exposure(exposure);
         Ok(view.visible(&scene.bounds, &camera_from_object, &scene.draw_order))
     }
 
