@@ -24,6 +24,9 @@ pub const MAX_FRICTION: f64 = 5.0;
 /// Smallest `diameter_tolerance_mm`, mm: a few times the bore diameter's uncertainty at the
 /// default camera; tighter than the outer diameter's reading it leaves parts unidentified.
 pub const MIN_DIAMETER_TOLERANCE_MM: f64 = 0.1;
+/// Shortest tube, mm: the tube family the detector is trained on starts here
+/// (`render::family`), and the pads, stopping 8 mm over the belt, still grip 22 mm of it.
+pub const MIN_PART_HEIGHT_MM: f64 = 30.0;
 /// Most bottles a single-part trial may put near its part.
 pub const MAX_BOTTLES: i64 = 8;
 
@@ -307,7 +310,7 @@ impl Scenario {
             c.positive_up_to(&key("bore_diameter_mm"), part.bore_diameter_mm, 100.0)?;
             c.positive_up_to(&key("outer_diameter_mm"), part.outer_diameter_mm, 100.0)?;
             c.in_range(&key("density_kg_m3"), part.density_kg_m3, 100.0, 25_000.0)?;
-            c.in_range(&key("height_mm"), part.height_mm, 40.0, 200.0)?;
+            c.in_range(&key("height_mm"), part.height_mm, MIN_PART_HEIGHT_MM, 200.0)?;
             if let Some(tolerance) = part.diameter_tolerance_mm {
                 c.in_range(
                     &key("diameter_tolerance_mm"),
