@@ -169,6 +169,81 @@ fn bad_shots_or_a_bad_scenario_exit_2_naming_the_cause() {
     assert_eq!(code, 2, "{stderr}");
 }
 
+/// `--set` studies a camera the file does not hold, as `run --set` would run it: the same shots
+/// through a tilted mount give the mount's tilt and the figures a file with that mount gives;
+/// a bad key exits 2 naming it, and `--out` with `--set` is refused (the band file could not
+/// hold the overrides).
+#[test]
+fn set_studies_another_mount_as_a_file_holding_it_does() {
+    let dir = out_dir("calibrate", "set");
+    let paper = scenario_path("paper_50.toml");
+    let paper = path_str(&paper);
+    let mut rng = SimRng::new(2412);
+    let tilt = rng.range(10.0_f64, 35.0);
+    let azimuth = rng.range(0.0_f64, 360.0).to_radians();
+    let station = [0.05, -0.45, 0.70];
+    let distance = rng.range(0.5, 0.8);
+    let position = [
+        station[0] + distance * tilt.to_radians().sin() * azimuth.cos(),
+        station[1] + distance * tilt.to_radians().sin() * azimuth.sin(),
+        station[2] + distance * tilt.to_radians().cos(),
+    ];
+    let value = format!("[{}, {}, {}]", position[0], position[1], position[2]);
+    let set = format!("camera.position_m={value}");
+    let look = format!(
+        "camera.look_at_m=[{}, {}, {}]",
+        station[0], station[1], station[2]
+    );
+    let args = [
+        "calibrate",
+        paper,
+        "--shots",
+        "6",
+        "--jobs",
+        "2",
+        "--json",
+        "--set",
+        &set,
+        "--set",
+        &look,
+    ];
+    let (code, stdout, stderr) = twincell(&args);
+    assert_eq!(code, 0, "{stderr}");
+    let with_set: Value = serde_json::from_str(&stdout).expect("JSON");
+    let read_tilt = with_set["camera"]["tilt_deg"].as_f64().unwrap_or(f64::NAN);
+    assert!((read_tilt - tilt).abs() < 0.01, "tilt {tilt}: {with_set}");
+    let body = format!(
+        "[camera]\nposition_m = {value}\nlook_at_m = [{}, {}, {}]\n",
+        station[0], station[1], station[2]
+    );
+    let file = variant(&dir, "mount", &body);
+    let from_file = study(&file, 6, 2);
+    for quantity in ["roundness", "bore_diameter", "outer_diameter"] {
+        assert_eq!(with_set[quantity], from_file[quantity], "{quantity}");
+    }
+    let (code, _, stderr) =
+        twincell(&["calibrate", paper, "--shots", "4", "--set", "camera.fov=50"]);
+    assert_eq!(code, 2, "{stderr}");
+    assert!(stderr.contains("camera.fov"), "{stderr}");
+    let band = dir.join("band.toml");
+    let (code, _, stderr) = twincell(&[
+        "calibrate",
+        paper,
+        "--shots",
+        "4",
+        "--set",
+        &set,
+        "--out",
+        path_str(&band),
+    ]);
+    assert_eq!(code, 2, "{stderr}");
+    assert!(
+        stderr.contains("--out") && stderr.contains("--set"),
+        "{stderr}"
+    );
+    assert!(!band.exists());
+}
+
 #[test]
 fn run_reads_the_band_the_study_writes() {
     let dir = out_dir("calibrate", "band");

@@ -256,7 +256,10 @@ fn tubes_from_30_mm_tall_are_a_catalogue_and_shorter_ones_are_refused() {
     }
     for height in [29.9, 20.0] {
         let err = load(&with_types(&[("ring", 12.0, 30.0, height)])).expect_err("too short");
-        assert!(err.contains("part_types[0].height_mm"), "{height} mm: {err}");
+        assert!(
+            err.contains("part_types[0].height_mm"),
+            "{height} mm: {err}"
+        );
         assert!(err.contains("[30, 200]"), "{height} mm: {err}");
     }
 }
@@ -383,7 +386,11 @@ fn rings_30_mm_tall_are_named_picked_and_sorted() {
         let record: serde_json::Value = serde_json::from_str(line).expect("JSON line");
         let truth = record["part"]["part_type"].as_str().expect("a part");
         assert_eq!(record["outcome"], "success", "{record}");
-        assert_eq!(record["decision"]["detected_type"].as_str(), Some(truth), "{record}");
+        assert_eq!(
+            record["decision"]["detected_type"].as_str(),
+            Some(truth),
+            "{record}"
+        );
     }
     assert_eq!(records.lines().count(), 4, "{records}");
 }

@@ -19,7 +19,7 @@ use serde::Serialize;
 use twincell::cell::{Cell, CellModel};
 use twincell::render::{CameraRig, ObjectKind, Renderer, RendererOptions, Scene, Shot};
 use twincell::rng::SimRng;
-use twincell::scenario::Scenario;
+use twincell::scenario::{Override, Scenario};
 use twincell::station::{ErrorSummary, KnownPart, MetrologyStudy, ShotErrors, StudySummary};
 
 use super::BadInput;
@@ -46,8 +46,13 @@ pub struct CalibrateArgs {
     /// Print the study as JSON instead of a table.
     #[arg(long)]
     json: bool,
+    /// Override a scenario key before the study, as `twincell run --set` does (repeatable),
+    /// e.g. `camera.position_m=[-0.3,-0.45,1.3]` to study another mount.
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    set: Vec<Override>,
     /// Write the band to FILE: a scenario file that extends SCENARIO and sets
-    /// `roundness_uncertainty_mm` to the study's U (run it with `twincell run FILE`).
+    /// `roundness_uncertainty_mm` to the study's U (run it with `twincell run FILE`). Not with
+    /// `--set`: the band file extends the file alone.
     #[arg(long, value_name = "FILE")]
     out: Option<PathBuf>,
 }
@@ -92,8 +97,16 @@ pub fn run(args: &CalibrateArgs) -> Result<ExitCode> {
     if args.jobs == Some(0) {
         return Err(BadInput("--jobs: must be at least 1".into()).into());
     }
+    if args.out.is_some() && !args.set.is_empty() {
+        return Err(BadInput(
+            "--out with --set: the band file extends the scenario file alone, so it would not \
+             hold the overrides; write them into a scenario file and calibrate that"
+                .into(),
+        )
+        .into());
+    }
     let path = &args.scenario;
-    let scenario = Scenario::load(path).map_err(|e| BadInput(e.to_string()))?;
+    let scenario = Scenario::load_with(path, &args.set).map_err(|e| BadInput(e.to_string()))?;
     let model = CellModel::new(scenario.clone(), path)
         .map_err(|e| BadInput(format!("{}: {e}", path.display())))?;
     let rig = CameraRig::from_scenario(&scenario)
