@@ -348,24 +348,19 @@ fn a_catalogue_of_own_sizes_is_sorted_by_measurement_with_the_shipped_detector()
 /// camera's measurement error of the tolerance (docs/type-identification.md).
 #[test]
 fn small_bores_on_a_far_coarse_camera_are_measured_and_named() {
-    let scenario = common::root().join("tests/data/own_catalogues/small_bores_far_camera.toml");
-    let scenario = scenario.to_str().expect("path");
-    let out = common::out_dir("type_identification", "small_bores_far_camera");
-    let out_str = out.to_str().expect("path");
-    let (code, stdout, stderr) = common::twincell(&[
-        "run", scenario, "--trials", "6", "--jobs", "2", "--out", out_str,
-    ]);
-    assert!(code == 0 || code == 1, "{stdout}\n{stderr}");
-    let records = common::read(&out.join("trials.jsonl"));
+    let (code, records) = run_catalogue("small_bores_far_camera", 6);
+    assert!(code == 0 || code == 1, "{records:?}");
     let mut sleeves = 0;
-    for line in records.lines() {
-        let record: serde_json::Value = serde_json::from_str(line).expect("JSON line");
+    for record in &records {
         let truth = record["part"]["part_type"].as_str().expect("a part");
         let detected = record["decision"]["detected_type"].as_str();
         assert_eq!(detected, Some(truth), "{record}");
         sleeves += usize::from(truth.starts_with("sleeve"));
     }
-    assert!(sleeves >= 2, "the draw holds {sleeves} sleeves: {records}");
+    assert!(
+        sleeves >= 2,
+        "the draw holds {sleeves} sleeves: {records:?}"
+    );
 }
 
 /// Rings 30-36 mm tall, the family's shortest (the scenario file's own catalogue), are named by
@@ -373,17 +368,9 @@ fn small_bores_on_a_far_coarse_camera_are_measured_and_named() {
 /// 50/50 over 50 camera trials on seed 11, 20/20 on the file's seed (docs/type-identification.md).
 #[test]
 fn rings_30_mm_tall_are_named_picked_and_sorted() {
-    let scenario = common::root().join("tests/data/own_catalogues/short_rings.toml");
-    let scenario = scenario.to_str().expect("path");
-    let out = common::out_dir("type_identification", "short_rings");
-    let out_str = out.to_str().expect("path");
-    let (code, stdout, stderr) = common::twincell(&[
-        "run", scenario, "--trials", "4", "--jobs", "2", "--out", out_str,
-    ]);
-    assert_eq!(code, 0, "{stdout}\n{stderr}");
-    let records = common::read(&out.join("trials.jsonl"));
-    for line in records.lines() {
-        let record: serde_json::Value = serde_json::from_str(line).expect("JSON line");
+    let (code, records) = run_catalogue("short_rings", 4);
+    assert_eq!(code, 0, "{records:?}");
+    for record in &records {
         let truth = record["part"]["part_type"].as_str().expect("a part");
         assert_eq!(record["outcome"], "success", "{record}");
         assert_eq!(
@@ -392,5 +379,24 @@ fn rings_30_mm_tall_are_named_picked_and_sorted() {
             "{record}"
         );
     }
-    assert_eq!(records.lines().count(), 4, "{records}");
+    assert_eq!(records.len(), 4, "{records:?}");
+}
+
+/// Runs `trials` camera trials of `tests/data/own_catalogues/NAME.toml` on its own seed: the
+/// exit code and the records.
+fn run_catalogue(name: &str, trials: u32) -> (i32, Vec<serde_json::Value>) {
+    let scenario = common::root().join(format!("tests/data/own_catalogues/{name}.toml"));
+    let scenario = scenario.to_str().expect("path");
+    let out = common::out_dir("type_identification", name);
+    let out_str = out.to_str().expect("path");
+    let trials = trials.to_string();
+    let (code, stdout, stderr) = common::twincell(&[
+        "run", scenario, "--trials", &trials, "--jobs", "2", "--out", out_str,
+    ]);
+    assert!(code == 0 || code == 1, "{stdout}\n{stderr}");
+    let records = common::read(&out.join("trials.jsonl"))
+        .lines()
+        .map(|line| serde_json::from_str(line).expect("JSON line"))
+        .collect();
+    (code, records)
 }
