@@ -362,18 +362,33 @@ impl BottleFitter {
         // Each box's poses, and whether its fit explained it.
         let mut fitted: Vec<(usize, Vec<BottlePose>, bool)> = Vec::new();
         for (k, (_, box_px)) in boxes.iter().enumerate() {
-            let candidates = self.fit_candidates(box_px, belt_top_z_m);
-            let cells = Cells::read(box_px, e, excluded);
-            if let Some((poses, agreement)) =
-                self.by_outline(&candidates, box_px, belt_top_z_m, &cells)
-                && agreement >= MIN_AGREEMENT
-            {
-                fitted.push((k, poses, true));
-                continue;
+            let diagonal = (box_px[2] - box_px[0]).hypot(box_px[3] - box_px[1]);
+            // The hypotheses whose boxes explain the detection (compared clipped to the frame, as
+            // below); the outline chooses among them. A box none explains (a fragment of a
+            // bottle, two bottles in one box) is searched by the pixels as before.
+            let explaining: Vec<BottlePose> = self
+                .fit_candidates(box_px, belt_top_z_m)
+                .into_iter()
+                .filter(|p| {
+                    self.projected_box(&p.world_from_bottle).is_some_and(|b| {
+                        box_residual_px(&e.clip(b), box_px) <= RESIDUAL_SHARE * diagonal
+                    })
+                })
+                .collect();
+            if !explaining.is_empty() {
+                let cells = Cells::read(box_px, e, excluded, |u, v| {
+                    self.sees_belt(u, v, belt_top_z_m)
+                });
+                if let Some((poses, agreement)) =
+                    self.by_outline(&explaining, box_px, belt_top_z_m, &cells)
+                    && agreement >= MIN_AGREEMENT
+                {
+                    fitted.push((k, poses, true));
+                    continue;
+                }
             }
             let poses = self.fit(box_px, belt_top_z_m);
             let poses = self.keep_supported(poses, box_px, e.image, e.scale);
-            let diagonal = (box_px[2] - box_px[0]).hypot(box_px[3] - box_px[1]);
             let supports: Vec<Option<f64>> = poses
                 .iter()
                 .map(|p| self.support(&p.world_from_bottle, e))

@@ -6,11 +6,14 @@ use image::RgbImage;
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 
 use super::bottle_outline::Outline;
+use super::bottle_unboxed::BeltBand;
 use super::silhouette::{Silhouette, box_residual_px};
 use crate::camera::CameraCalibration;
 use crate::render::mesh::Mesh;
 use crate::scenario::BottleSection;
 
+/// How high what runs along the belt's edges (its rails) may stand above its top, m.
+const EDGE_HEIGHT_M: f64 = 0.03;
 /// Yaw steps of the lying-bottle search over a full turn.
 const LYING_YAW_STEPS: usize = 180;
 /// A hypothesis within this box residual of the best one is kept as well, pixels.
@@ -54,6 +57,9 @@ pub struct BottleFitter {
     /// The tallest part the cell handles, m: a part's box and the tube's side below it, down to
     /// the belt, are the part's pixels, not a bottle's ([`Self::part_column`]).
     pub(super) part_height_m: f64,
+    /// The belt the bottles stand on: pixels that show what lies beyond its edges are not read
+    /// against the belt's colour ([`Self::sees_belt`]).
+    pub(super) belt: Option<BeltBand>,
 }
 
 impl BottleFitter {
@@ -70,7 +76,32 @@ impl BottleFitter {
             body_points: body_points(&points, bottle.height_m),
             outline: Outline::of_mesh(&mesh),
             part_height_m: 0.0,
+            belt: None,
         }
+    }
+
+    /// The fitter with the bottles on `belt` (without, every pixel is read against the belt's
+    /// colour).
+    pub fn with_belt(mut self, belt: BeltBand) -> Self {
+        self.belt = Some(belt);
+        self
+    }
+
+    /// Whether calibration pixel `(u, v)` shows the belt whose top is at `belt_top_z_m` when no
+    /// bottle or part stands there: its ray meets the belt's top, and the height of the rails
+    /// along its edges (30 mm), between the edges. Beyond them lie the rails, the
+    /// frame and the floor, unlike the belt whether or not a bottle is there.
+    pub fn sees_belt(&self, u: f64, v: f64, belt_top_z_m: f64) -> bool {
+        let Some(band) = self.belt else {
+            return true;
+        };
+        [belt_top_z_m, belt_top_z_m + EDGE_HEIGHT_M]
+            .iter()
+            .all(|&z| {
+                self.calibration
+                    .pixel_to_height(u, v, z)
+                    .is_ok_and(|p| (p.y - band.centre_y_m).abs() <= band.half_width_m)
+            })
     }
 
     /// The fitter with parts up to `height_m` tall beside the bottles (without, a part's pixels

@@ -11,9 +11,12 @@
 //! beside it taken in), which the outline's fit to the pixels undoes.
 //!
 //! - A pose's **agreement** is the intersection over union of its outline and the pixels unlike
-//!   the belt's, over a grid of cells around the detection. Cells outside the frame, and cells a
-//!   part may fill (its box and the tube's side below it, [`Cells::read`]), count for nothing.
-//!   The cap is dark, read as belt or not: cells only the cap covers count for nothing either.
+//!   the belt's, over a grid of cells around the detection. Cells outside the frame, cells a
+//!   part may fill (its box and the tube's side below it, [`BottleFitter::part_column`]), and
+//!   cells that show what lies beyond the belt's edges (the rails, the frame, the floor: unlike
+//!   the belt whether or not a bottle stands there, [`BottleFitter::sees_belt`]) count for
+//!   nothing. The cap is dark, read as belt or not: cells only the cap covers count for nothing
+//!   either.
 //! - A pose is **refined** by a pattern search over its place (and its yaw when lying) to the
 //!   highest agreement.
 
@@ -76,8 +79,14 @@ pub struct Cells {
 
 impl Cells {
     /// The cells over `box_px` grown by [`REGION_GROWTH_SHARE`], read in `e`; cells inside any
-    /// of `excluded` (calibration pixels) count for nothing.
-    pub fn read(box_px: &[f64; 4], e: &Evidence<'_>, excluded: &[[f64; 4]]) -> Self {
+    /// of `excluded` (calibration pixels), and cells where `belt` (given a cell's centre) says
+    /// the belt does not show, count for nothing.
+    pub fn read(
+        box_px: &[f64; 4],
+        e: &Evidence<'_>,
+        excluded: &[[f64; 4]],
+        belt: impl Fn(f64, f64) -> bool,
+    ) -> Self {
         let [x0, y0, x1, y1] = *box_px;
         let g = REGION_GROWTH_SHARE * (x1 - x0).max(y1 - y0);
         let (w, h) = e.frame_px();
@@ -101,6 +110,7 @@ impl Cells {
                 if excluded
                     .iter()
                     .any(|b| (b[0]..=b[2]).contains(&u) && (b[1]..=b[3]).contains(&v))
+                    || !belt(u, v)
                 {
                     continue;
                 }
@@ -251,10 +261,6 @@ fn fill_triangle(
 const LYING_REFINED: usize = 2;
 /// Lying hypotheses whose axes lie within this angle of each other (either way along) are one.
 const DISTINCT_YAW_RAD: f64 = 0.3;
-/// A lying hypothesis is judged only when its box lies within this share of the detection's
-/// diagonal (RMS of the four sides) of the best box's: the detector's box of a bottle seen at a
-/// slant is off by up to about a tenth of it.
-const SHORTLIST_SHARE: f64 = 0.12;
 /// Refined poses whose agreement lies within this of the best one's are all kept: the pixels
 /// cannot tell them apart.
 const AMBIGUITY_AGREEMENT: f64 = 0.02;
@@ -301,12 +307,11 @@ impl BottleFitter {
         ))
     }
 
-    /// The poses among `candidates` (a box fit's hypotheses for `box_px`, best box first) that
-    /// the outline bears out, refined: the standing hypothesis and the lying ones whose boxes
-    /// come near the best are judged by their agreement with `cells`; the best standing and
-    /// the best lying at [`LYING_REFINED`] distinct yaws are refined; the best of those, and
-    /// any other within [`AMBIGUITY_AGREEMENT`] of it, are returned best first, with the best
-    /// agreement. `None` when no hypothesis can be judged.
+    /// The poses among `candidates` (a box fit's hypotheses whose boxes explain `box_px`) that
+    /// the outline bears out, refined: each is judged by its agreement with `cells`; the best
+    /// standing and the best lying at [`LYING_REFINED`] distinct yaws are refined; the best of
+    /// those, and any other within [`AMBIGUITY_AGREEMENT`] of it, are returned best first, with
+    /// the best agreement. `None` when no hypothesis can be judged.
     pub(super) fn by_outline(
         &self,
         candidates: &[BottlePose],
@@ -314,11 +319,8 @@ impl BottleFitter {
         belt_top_z_m: f64,
         cells: &Cells,
     ) -> Option<(Vec<BottlePose>, f64)> {
-        let diagonal = (box_px[2] - box_px[0]).hypot(box_px[3] - box_px[1]);
-        let tolerance = candidates.first()?.residual_px + SHORTLIST_SHARE * diagonal;
         let mut judged: Vec<(BottlePose, f64)> = candidates
             .iter()
-            .filter(|p| !p.lying || p.residual_px <= tolerance)
             .filter_map(|p| Some((*p, self.agreement(&p.world_from_bottle, cells)?)))
             .collect();
         judged.sort_by(|a, b| b.1.total_cmp(&a.1));
