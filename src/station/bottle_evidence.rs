@@ -21,11 +21,15 @@ use image::RgbImage;
 use nalgebra::{Isometry3, Point3, Vector3};
 
 use super::bottle_fit::{BottleFitter, BottlePose};
+use super::bottle_outline::Cells;
 use super::bottle_unboxed::BeltBand;
 use super::camera_percept::BottleSighting;
 use super::silhouette::box_residual_px;
 use crate::detect::Detection;
 
+/// A box whose best pose's outline agrees with the pixels by at least this (intersection over
+/// union, [`BottleFitter::agreement`]) is explained by it.
+const MIN_AGREEMENT: f64 = 0.45;
 /// Share of a pose's body points that must fall on pixels unlike the belt's.
 pub const MIN_SUPPORT: f64 = 0.7;
 /// A pixel whose mean colour over 3 x 3 differs from the belt's by more than this (RGB
@@ -353,13 +357,38 @@ impl BottleFitter {
         boxes: &[(usize, [f64; 4])],
         belt_top_z_m: f64,
         e: &Evidence<'_>,
+        excluded: &[[f64; 4]],
     ) -> (Vec<BottleSighting>, Vec<usize>) {
         // Each box's poses, and whether its fit explained it.
         let mut fitted: Vec<(usize, Vec<BottlePose>, bool)> = Vec::new();
         for (k, (_, box_px)) in boxes.iter().enumerate() {
+            let diagonal = (box_px[2] - box_px[0]).hypot(box_px[3] - box_px[1]);
+            // The hypotheses whose boxes explain the detection (compared clipped to the frame, as
+            // below); the outline chooses among them. A box none explains (a fragment of a
+            // bottle, two bottles in one box) is searched by the pixels as before.
+            let explaining: Vec<BottlePose> = self
+                .fit_candidates(box_px, belt_top_z_m)
+                .into_iter()
+                .filter(|p| {
+                    self.projected_box(&p.world_from_bottle).is_some_and(|b| {
+                        box_residual_px(&e.clip(b), box_px) <= RESIDUAL_SHARE * diagonal
+                    })
+                })
+                .collect();
+            if !explaining.is_empty() {
+                let cells = Cells::read(box_px, e, excluded, |u, v| {
+                    self.sees_belt(u, v, belt_top_z_m)
+                });
+                if let Some((poses, agreement)) =
+                    self.by_outline(&explaining, box_px, belt_top_z_m, &cells)
+                    && agreement >= MIN_AGREEMENT
+                {
+                    fitted.push((k, poses, true));
+                    continue;
+                }
+            }
             let poses = self.fit(box_px, belt_top_z_m);
             let poses = self.keep_supported(poses, box_px, e.image, e.scale);
-            let diagonal = (box_px[2] - box_px[0]).hypot(box_px[3] - box_px[1]);
             let supports: Vec<Option<f64>> = poses
                 .iter()
                 .map(|p| self.support(&p.world_from_bottle, e))
@@ -487,14 +516,18 @@ pub fn bottle_sightings(
     let all: Vec<[f64; 4]> = detections.iter().map(|d| d.box_px.map(f64::from)).collect();
     match Evidence::new(image, scale, frame_px, &all) {
         Some(e) => {
-            let (mut sightings, holder) = fitter.sightings(boxes, belt_top_z_m, &e);
+            let parts: Vec<[f64; 4]> = all
+                .iter()
+                .enumerate()
+                .filter(|(i, _)| !boxes.iter().any(|(k, _)| k == i))
+                .map(|(_, b)| *b)
+                .collect();
+            let columns: Vec<[f64; 4]> = parts
+                .iter()
+                .map(|b| fitter.part_column(b, belt_top_z_m))
+                .collect();
+            let (mut sightings, holder) = fitter.sightings(boxes, belt_top_z_m, &e, &columns);
             if let Some(band) = band {
-                let parts: Vec<[f64; 4]> = all
-                    .iter()
-                    .enumerate()
-                    .filter(|(i, _)| !boxes.iter().any(|(k, _)| k == i))
-                    .map(|(_, b)| *b)
-                    .collect();
                 fitter.unboxed(&mut sightings, &parts, band, belt_top_z_m, &e);
             }
             (sightings, holder)

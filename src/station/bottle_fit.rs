@@ -5,11 +5,15 @@
 use image::RgbImage;
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 
+use super::bottle_outline::Outline;
+use super::bottle_unboxed::BeltBand;
 use super::silhouette::{Silhouette, box_residual_px};
 use crate::camera::CameraCalibration;
 use crate::render::mesh::Mesh;
 use crate::scenario::BottleSection;
 
+/// How high what runs along the belt's edges (its rails) may stand above its top, m.
+const EDGE_HEIGHT_M: f64 = 0.03;
 /// Yaw steps of the lying-bottle search over a full turn.
 const LYING_YAW_STEPS: usize = 180;
 /// A hypothesis within this box residual of the best one is kept as well, pixels.
@@ -48,6 +52,14 @@ pub struct BottleFitter {
     /// Points inside the bottle's body, off its cap, in its own frame (the image's support of
     /// a pose is read at their projections).
     pub(super) body_points: Vec<Point3<f64>>,
+    /// The mesh a pose's outline is drawn from ([`Self::agreement`]).
+    pub(super) outline: Outline,
+    /// The tallest part the cell handles, m: a part's box and the tube's side below it, down to
+    /// the belt, are the part's pixels, not a bottle's ([`Self::part_column`]).
+    pub(super) part_height_m: f64,
+    /// The belt the bottles stand on: pixels that show what lies beyond its edges are not read
+    /// against the belt's colour ([`Self::sees_belt`]).
+    pub(super) belt: Option<BeltBand>,
 }
 
 impl BottleFitter {
@@ -62,7 +74,68 @@ impl BottleFitter {
             height_m: bottle.height_m,
             silhouette: Silhouette::of_points(points.iter().copied()),
             body_points: body_points(&points, bottle.height_m),
+            outline: Outline::of_mesh(&mesh),
+            part_height_m: 0.0,
+            belt: None,
         }
+    }
+
+    /// The fitter with the bottles on `belt` (without, every pixel is read against the belt's
+    /// colour).
+    pub fn with_belt(mut self, belt: BeltBand) -> Self {
+        self.belt = Some(belt);
+        self
+    }
+
+    /// Whether calibration pixel `(u, v)` shows the belt whose top is at `belt_top_z_m` when no
+    /// bottle or part stands there: its ray meets the belt's top, and the height of the rails
+    /// along its edges (30 mm), between the edges. Beyond them lie the rails, the
+    /// frame and the floor, unlike the belt whether or not a bottle is there.
+    pub fn sees_belt(&self, u: f64, v: f64, belt_top_z_m: f64) -> bool {
+        let Some(band) = self.belt else {
+            return true;
+        };
+        [belt_top_z_m, belt_top_z_m + EDGE_HEIGHT_M]
+            .iter()
+            .all(|&z| {
+                self.calibration
+                    .pixel_to_height(u, v, z)
+                    .is_ok_and(|p| (p.y - band.centre_y_m).abs() <= band.half_width_m)
+            })
+    }
+
+    /// The fitter with parts up to `height_m` tall beside the bottles (without, a part's pixels
+    /// are taken to be its box's alone).
+    pub fn with_part_height(mut self, height_m: f64) -> Self {
+        self.part_height_m = height_m.max(0.0);
+        self
+    }
+
+    /// Where in the image a part whose end face the detector boxed at `box_px` may show: the box
+    /// and the tube's side below it down to the belt at `belt_top_z_m` (the end face taken at
+    /// the tallest part's height), as one box.
+    pub fn part_column(&self, box_px: &[f64; 4], belt_top_z_m: f64) -> [f64; 4] {
+        let [x0, y0, x1, y1] = *box_px;
+        let mut column = *box_px;
+        let top_z = belt_top_z_m + self.part_height_m;
+        for (u, v) in [(x0, y0), (x1, y0), (x0, y1), (x1, y1)] {
+            let Ok(top) = self.calibration.pixel_to_height(u, v, top_z) else {
+                continue;
+            };
+            let Some([du, dv]) = self
+                .calibration
+                .project(&Point3::new(top.x, top.y, belt_top_z_m))
+            else {
+                continue;
+            };
+            column = [
+                column[0].min(du),
+                column[1].min(dv),
+                column[2].max(du),
+                column[3].max(dv),
+            ];
+        }
+        column
     }
 
     /// The box (`[x0, y0, x1, y1]`, pixels) the bottle at `world_from_bottle` projects to, or
@@ -99,6 +172,23 @@ impl BottleFitter {
     /// `AMBIGUITY_PX` (2 px) of it are returned, best first: a lying bottle seen from above can look
     /// the same at mirrored yaws, and the planner must keep clear of each.
     pub fn fit(&self, box_px: &[f64; 4], belt_top_z_m: f64) -> Vec<BottlePose> {
+        let poses = self.fit_candidates(box_px, belt_top_z_m);
+        let best = poses.first().map_or(0.0, |p| p.residual_px);
+        let mut kept: Vec<BottlePose> = Vec::new();
+        for pose in poses {
+            if pose.residual_px > best + AMBIGUITY_PX {
+                break;
+            }
+            if !kept.iter().any(|k| self.same_cylinder(k, &pose)) {
+                kept.push(pose);
+            }
+        }
+        kept
+    }
+
+    /// Every hypothesis of [`Self::fit`] (standing, and lying at each of its yaws) slid over the
+    /// belt until its box is centred on `box_px`'s, best box first.
+    pub(super) fn fit_candidates(&self, box_px: &[f64; 4], belt_top_z_m: f64) -> Vec<BottlePose> {
         let centre = [(box_px[0] + box_px[2]) / 2.0, (box_px[1] + box_px[3]) / 2.0];
         let mut hypotheses = vec![(false, 0.0)];
         hypotheses.extend((0..LYING_YAW_STEPS).map(|k| {
@@ -130,17 +220,7 @@ impl BottleFitter {
             });
         }
         poses.sort_by(|a, b| a.residual_px.total_cmp(&b.residual_px));
-        let best = poses.first().map_or(0.0, |p| p.residual_px);
-        let mut kept: Vec<BottlePose> = Vec::new();
-        for pose in poses {
-            if pose.residual_px > best + AMBIGUITY_PX {
-                break;
-            }
-            if !kept.iter().any(|k| self.same_cylinder(k, &pose)) {
-                kept.push(pose);
-            }
-        }
-        kept
+        poses
     }
 
     /// `poses` (a [`Self::fit`] to `box_px`) less the lying ones the image contradicts. A box
@@ -218,7 +298,7 @@ impl BottleFitter {
 
     /// Whether two poses occupy nearly the same bounding cylinder (the planner's view of a
     /// bottle, the same whichever end is the base): axes within 10 degrees, middles within 1 cm.
-    fn same_cylinder(&self, a: &BottlePose, b: &BottlePose) -> bool {
+    pub(super) fn same_cylinder(&self, a: &BottlePose, b: &BottlePose) -> bool {
         let axis = |p: &BottlePose| p.world_from_bottle.rotation * Vector3::z();
         let middle =
             |p: &BottlePose| p.world_from_bottle * Point3::new(0.0, 0.0, self.height_m / 2.0);

@@ -262,7 +262,17 @@ impl CameraPerception {
             };
             type_of_class[class] = Some(type_index);
         }
-        let bottle_fitter = BottleFitter::new(rig.calibration, &scenario.bottle);
+        let tallest_part_m = scenario
+            .part_types
+            .iter()
+            .map(|t| t.height_mm / 1e3)
+            .fold(0.0, f64::max);
+        let bottle_fitter = BottleFitter::new(rig.calibration, &scenario.bottle)
+            .with_part_height(tallest_part_m)
+            .with_belt(BeltBand {
+                centre_y_m: scenario.conveyor.belt_center_m[1],
+                half_width_m: scenario.conveyor.width_m / 2.0,
+            });
         Ok(Self {
             rig,
             roi_scale: scenario.camera.roi_scale,

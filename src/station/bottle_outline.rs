@@ -1,0 +1,363 @@
+//! A bottle pose judged by its whole outline: the bottle's mesh projected through the calibrated
+//! camera, cell by cell against the frame's pixels that are not the belt's.
+//!
+//! A box cannot tell a standing bottle seen obliquely from one lying along the view: from a
+//! camera 35 degrees off the vertical, the box of a standing bottle is matched within a pixel or
+//! two by a bottle lying with its cap away from the camera, its middle 60-90 mm off. The outline
+//! tells them apart: under perspective a standing bottle's image widens towards its top (nearer
+//! the camera), a lying one's narrows towards its far end, and the two outlines overlap by about
+//! 0.8 of their union where the true pose's overlaps the pixels by 0.9 or more. The detector's box
+//! is also off by 5-20 px on a bottle seen at a slant (its edge rounded, the cap's end cut, a part
+//! beside it taken in), which the outline's fit to the pixels undoes.
+//!
+//! - A pose's **agreement** is the intersection over union of its outline and the pixels unlike
+//!   the belt's, over a grid of cells around the detection. Cells outside the frame, cells a
+//!   part may fill (its box and the tube's side below it, [`BottleFitter::part_column`]), and
+//!   cells that show what lies beyond the belt's edges (the rails, the frame, the floor: unlike
+//!   the belt whether or not a bottle stands there, [`BottleFitter::sees_belt`]) count for
+//!   nothing. The cap is dark, read as belt or not: cells only the cap covers count for nothing
+//!   either.
+//! - A pose is **refined** by a pattern search over its place (and its yaw when lying) to the
+//!   highest agreement.
+
+use nalgebra::{Isometry3, Point3};
+
+use super::bottle_evidence::Evidence;
+use super::bottle_fit::{BottleFitter, BottlePose};
+use crate::render::material::Material;
+use crate::render::mesh::Mesh;
+
+/// Cells along the longer side of the region a pose is judged over.
+const CELLS_ALONG: f64 = 64.0;
+/// The region is the detection's box grown by this share of its larger side on every side.
+const REGION_GROWTH_SHARE: f64 = 0.15;
+/// The refinement's first steps (place, m; yaw, rad) and how many times they are halved.
+const REFINE_STEP_M: f64 = 0.008;
+const REFINE_STEP_RAD: f64 = 0.06;
+const REFINE_HALVINGS: usize = 4;
+
+/// The bottle's mesh as the outline is drawn from it: each point once, and its triangles (point
+/// indices), the cap's flagged.
+#[derive(Debug, Clone)]
+pub struct Outline {
+    points: Vec<Point3<f64>>,
+    triangles: Vec<([u32; 3], bool)>,
+}
+
+impl Outline {
+    /// The outline of `mesh` (its triangles; those of [`Material::BOTTLE_CAP`] are the cap's).
+    pub fn of_mesh(mesh: &Mesh) -> Self {
+        let mut points: Vec<Point3<f64>> = Vec::new();
+        let mut index_of = std::collections::HashMap::new();
+        let mut triangles = Vec::with_capacity(mesh.vertices.len() / 3);
+        for t in mesh.vertices.chunks_exact(3) {
+            let mut tri = [0u32; 3];
+            for (slot, v) in tri.iter_mut().zip(t) {
+                let key = v.position.coords.map(f64::to_bits);
+                let key = (key.x, key.y, key.z);
+                *slot = *index_of.entry(key).or_insert_with(|| {
+                    points.push(v.position);
+                    (points.len() - 1) as u32
+                });
+            }
+            triangles.push((tri, t[0].material == Material::BOTTLE_CAP));
+        }
+        Self { points, triangles }
+    }
+}
+
+/// What the frame shows over a grid of cells (calibration pixels): per cell 0 when it counts for
+/// nothing, 1 the belt, 2 not the belt.
+#[derive(Debug, Clone)]
+pub struct Cells {
+    origin: [f64; 2],
+    step: f64,
+    cols: usize,
+    rows: usize,
+    seen: Vec<u8>,
+}
+
+impl Cells {
+    /// The cells over `box_px` grown by [`REGION_GROWTH_SHARE`], read in `e`; cells inside any
+    /// of `excluded` (calibration pixels), and cells where `belt` (given a cell's centre) says
+    /// the belt does not show, count for nothing.
+    pub fn read(
+        box_px: &[f64; 4],
+        e: &Evidence<'_>,
+        excluded: &[[f64; 4]],
+        belt: impl Fn(f64, f64) -> bool,
+    ) -> Self {
+        let [x0, y0, x1, y1] = *box_px;
+        let g = REGION_GROWTH_SHARE * (x1 - x0).max(y1 - y0);
+        let (w, h) = e.frame_px();
+        let region = [
+            (x0 - g).max(0.0),
+            (y0 - g).max(0.0),
+            (x1 + g).min(w),
+            (y1 + g).min(h),
+        ];
+        let step = ((region[2] - region[0]).max(region[3] - region[1]) / CELLS_ALONG).max(1.0);
+        let cols = ((region[2] - region[0]) / step).ceil().max(1.0) as usize;
+        let rows = ((region[3] - region[1]) / step).ceil().max(1.0) as usize;
+        let origin = [region[0], region[1]];
+        let mut seen = vec![0u8; cols * rows];
+        for j in 0..rows {
+            for i in 0..cols {
+                let (u, v) = (
+                    origin[0] + (i as f64 + 0.5) * step,
+                    origin[1] + (j as f64 + 0.5) * step,
+                );
+                if excluded
+                    .iter()
+                    .any(|b| (b[0]..=b[2]).contains(&u) && (b[1]..=b[3]).contains(&v))
+                    || !belt(u, v)
+                {
+                    continue;
+                }
+                seen[j * cols + i] = match e.foreground(u, v) {
+                    Some(true) => 2,
+                    Some(false) => 1,
+                    None => 0,
+                };
+            }
+        }
+        Self {
+            origin,
+            step,
+            cols,
+            rows,
+            seen,
+        }
+    }
+
+    /// How many cells show something other than the belt.
+    pub fn foreground(&self) -> usize {
+        self.seen.iter().filter(|&&s| s == 2).count()
+    }
+}
+
+impl BottleFitter {
+    /// The agreement (intersection over union, over the cells that count) of the outline of the
+    /// bottle at `world_from_bottle` with `cells`' pixels unlike the belt; `None` when a point of
+    /// it is behind the camera or no cell counts.
+    pub fn agreement(&self, world_from_bottle: &Isometry3<f64>, cells: &Cells) -> Option<f64> {
+        let c = &self.calibration;
+        let camera_from_bottle = c.world_from_camera.inverse() * world_from_bottle;
+        let mut uv = Vec::with_capacity(self.outline.points.len());
+        for p in &self.outline.points {
+            let q = camera_from_bottle * p;
+            if q.z <= 0.0 {
+                return None;
+            }
+            uv.push([
+                (c.fx_px * q.x / q.z + c.cx_px - cells.origin[0]) / cells.step - 0.5,
+                (c.fy_px * q.y / q.z + c.cy_px - cells.origin[1]) / cells.step - 0.5,
+            ]);
+        }
+        // Per cell: 1 the body covers it, 2 only the cap does.
+        let mut cover = vec![0u8; cells.seen.len()];
+        for &(tri, cap) in &self.outline.triangles {
+            let [a, b, d] = tri.map(|k| uv[k as usize]);
+            fill_triangle(&a, &b, &d, cells.cols, cells.rows, |k| {
+                if !cap {
+                    cover[k] = 1;
+                } else if cover[k] == 0 {
+                    cover[k] = 2;
+                }
+            });
+        }
+        let (mut both, mut either) = (0usize, 0usize);
+        for (&s, &o) in cells.seen.iter().zip(&cover) {
+            if s == 0 || o == 2 {
+                continue;
+            }
+            let (fg, body) = (s == 2, o == 1);
+            both += usize::from(fg && body);
+            either += usize::from(fg || body);
+        }
+        (either > 0).then(|| both as f64 / either as f64)
+    }
+
+    /// `pose_at(x, y, yaw)` refined from `(x, y, yaw)` to the highest agreement with `cells` by a
+    /// pattern search (the yaw held when `turn` is false): the place, the yaw and the agreement.
+    pub(super) fn refine(
+        &self,
+        start: (f64, f64, f64),
+        turn: bool,
+        cells: &Cells,
+        pose_at: impl Fn(f64, f64, f64) -> Isometry3<f64>,
+    ) -> Option<((f64, f64, f64), f64)> {
+        let score = |s: (f64, f64, f64)| self.agreement(&pose_at(s.0, s.1, s.2), cells);
+        let mut best = (start, score(start)?);
+        let (mut step, mut turn_step) = (REFINE_STEP_M, REFINE_STEP_RAD);
+        for _ in 0..=REFINE_HALVINGS {
+            loop {
+                let (x, y, yaw) = best.0;
+                let mut moves = vec![
+                    (x + step, y, yaw),
+                    (x - step, y, yaw),
+                    (x, y + step, yaw),
+                    (x, y - step, yaw),
+                ];
+                if turn {
+                    moves.push((x, y, yaw + turn_step));
+                    moves.push((x, y, yaw - turn_step));
+                }
+                let mut improved = false;
+                for m in moves {
+                    if let Some(a) = score(m)
+                        && a > best.1
+                    {
+                        best = (m, a);
+                        improved = true;
+                    }
+                }
+                if !improved {
+                    break;
+                }
+            }
+            step /= 2.0;
+            turn_step /= 2.0;
+        }
+        Some(best)
+    }
+}
+
+/// Calls `mark` with the index of every cell of a `cols` x `rows` grid whose centre lies in the
+/// triangle `a`, `b`, `c` (cell coordinates: cell `(i, j)`'s centre is at `(i, j)`).
+fn fill_triangle(
+    a: &[f64; 2],
+    b: &[f64; 2],
+    c: &[f64; 2],
+    cols: usize,
+    rows: usize,
+    mut mark: impl FnMut(usize),
+) {
+    let area = (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]);
+    if area == 0.0 {
+        return;
+    }
+    let i0 = a[0].min(b[0]).min(c[0]).ceil().max(0.0);
+    let i1 = a[0].max(b[0]).max(c[0]).floor().min(cols as f64 - 1.0);
+    let j0 = a[1].min(b[1]).min(c[1]).ceil().max(0.0);
+    let j1 = a[1].max(b[1]).max(c[1]).floor().min(rows as f64 - 1.0);
+    if i0 > i1 || j0 > j1 {
+        return;
+    }
+    let edge = |p: &[f64; 2], q: &[f64; 2], x: f64, y: f64| {
+        ((q[0] - p[0]) * (y - p[1]) - (q[1] - p[1]) * (x - p[0])) * area.signum()
+    };
+    for j in j0 as usize..=j1 as usize {
+        for i in i0 as usize..=i1 as usize {
+            let (x, y) = (i as f64, j as f64);
+            if edge(a, b, x, y) >= 0.0 && edge(b, c, x, y) >= 0.0 && edge(c, a, x, y) >= 0.0 {
+                mark(j * cols + i);
+            }
+        }
+    }
+}
+
+/// Lying hypotheses refined besides the standing one: the best by agreement at distinct yaws.
+const LYING_REFINED: usize = 2;
+/// Lying hypotheses whose axes lie within this angle of each other (either way along) are one.
+const DISTINCT_YAW_RAD: f64 = 0.3;
+/// Refined poses whose agreement lies within this of the best one's are all kept: the pixels
+/// cannot tell them apart.
+const AMBIGUITY_AGREEMENT: f64 = 0.02;
+
+impl BottleFitter {
+    /// The place under the bottle's middle and its yaw (0 standing) of a pose of [`Self::pose_at`].
+    fn place_of(&self, pose: &BottlePose) -> (f64, f64, f64) {
+        let w = &pose.world_from_bottle;
+        let middle = w * Point3::new(0.0, 0.0, self.height_m / 2.0);
+        let axis = w.rotation * nalgebra::Vector3::z();
+        let yaw = if pose.lying {
+            axis.y.atan2(axis.x)
+        } else {
+            0.0
+        };
+        (middle.x, middle.y, yaw)
+    }
+
+    /// `pose` refined to the highest agreement with `cells`, its box residual to `box_px` read
+    /// again; with its agreement.
+    fn refined(
+        &self,
+        pose: &BottlePose,
+        box_px: &[f64; 4],
+        belt_top_z_m: f64,
+        cells: &Cells,
+    ) -> Option<(BottlePose, f64)> {
+        let lying = pose.lying;
+        let pose_at = |x, y, yaw| self.pose_at(lying, yaw, x, y, belt_top_z_m);
+        let ((x, y, yaw), agreement) = self.refine(self.place_of(pose), lying, cells, pose_at)?;
+        let world_from_bottle = self.pose_at(lying, yaw, x, y, belt_top_z_m);
+        let residual_px = self
+            .projected_box(&world_from_bottle)
+            .map_or(f64::INFINITY, |b| {
+                super::silhouette::box_residual_px(&b, box_px)
+            });
+        Some((
+            BottlePose {
+                world_from_bottle,
+                lying,
+                residual_px,
+            },
+            agreement,
+        ))
+    }
+
+    /// The poses among `candidates` (a box fit's hypotheses whose boxes explain `box_px`) that
+    /// the outline bears out, refined: each is judged by its agreement with `cells`; the best
+    /// standing and the best lying at [`LYING_REFINED`] distinct yaws are refined; the best of
+    /// those, and any other within [`AMBIGUITY_AGREEMENT`] of it, are returned best first, with
+    /// the best agreement. `None` when no hypothesis can be judged.
+    pub(super) fn by_outline(
+        &self,
+        candidates: &[BottlePose],
+        box_px: &[f64; 4],
+        belt_top_z_m: f64,
+        cells: &Cells,
+    ) -> Option<(Vec<BottlePose>, f64)> {
+        let mut judged: Vec<(BottlePose, f64)> = candidates
+            .iter()
+            .filter_map(|p| Some((*p, self.agreement(&p.world_from_bottle, cells)?)))
+            .collect();
+        judged.sort_by(|a, b| b.1.total_cmp(&a.1));
+        let mut starts: Vec<BottlePose> = Vec::new();
+        if let Some((standing, _)) = judged.iter().find(|(p, _)| !p.lying) {
+            starts.push(*standing);
+        }
+        let mut yaws: Vec<f64> = Vec::new();
+        for (p, _) in judged.iter().filter(|(p, _)| p.lying) {
+            if yaws.len() >= LYING_REFINED {
+                break;
+            }
+            let yaw = self.place_of(p).2;
+            let distinct = yaws.iter().all(|y| {
+                let d = (yaw - y).rem_euclid(std::f64::consts::PI);
+                d.min(std::f64::consts::PI - d) > DISTINCT_YAW_RAD
+            });
+            if distinct {
+                yaws.push(yaw);
+                starts.push(*p);
+            }
+        }
+        let mut refined: Vec<(BottlePose, f64)> = starts
+            .iter()
+            .filter_map(|p| self.refined(p, box_px, belt_top_z_m, cells))
+            .collect();
+        refined.sort_by(|a, b| b.1.total_cmp(&a.1));
+        let best = refined.first()?.1;
+        let mut kept: Vec<BottlePose> = Vec::new();
+        for (pose, agreement) in refined {
+            if agreement < best - AMBIGUITY_AGREEMENT {
+                break;
+            }
+            if !kept.iter().any(|k| self.same_cylinder(k, &pose)) {
+                kept.push(pose);
+            }
+        }
+        Some((kept, best))
+    }
+}
