@@ -1,6 +1,7 @@
 //! The drop of a picked foreign body into a waste bin: carried over the bin with its middle
-//! over a free spot, lowered until its lowest point is just above the rim, and let go at the
-//! lean that puts it as it stood or lay on the belt.
+//! over a free spot, lowered until its lowest point is just over the floor (or, where the arm
+//! cannot take it that low, just above the rim), and let go at the lean that puts it as it stood
+//! or lay on the belt.
 
 use nalgebra::{Isometry3, Vector3};
 use rapier3d::geometry::SharedShape;
@@ -14,6 +15,9 @@ use crate::station::PerceivedObstacle;
 
 /// How far above a waste bin's rim the carried body's lowest point is let go, m.
 const DROP_ABOVE_RIM_M: f64 = 0.02;
+/// How far above a waste bin's floor the carried body's lowest point is let go where the arm
+/// can take it that low, m (past the planning margin).
+const DROP_ABOVE_FLOOR_M: f64 = 0.015;
 /// How far above the rim-level release point the straight descent over the bin starts, m.
 const DROP_APPROACH_M: f64 = 0.04;
 /// The largest lean of the tool at a drop, deg (the grasps lean up to 35).
@@ -28,14 +32,27 @@ impl PickPlanner {
     /// The drop of a picked cylinder into `bin`, where `in_bin` (world) already lies: the body
     /// (not the TCP: a grip off its middle shifts it) carried over the bin's middle, a lying one
     /// along a diagonal, or when what is in the bin takes the middle, a standing body over a
-    /// free corner; lowered until its lowest point is just above the rim, and let go, clear of
-    /// what is in the bin, at the lean that puts it as it stood or lay. Returns the plan and the
-    /// body as it will rest on the floor.
+    /// free corner; lowered until its lowest point is just over the floor where the arm clears
+    /// the walls at some spot and yaw, else just above the rim, and let go, clear of what is in
+    /// the bin, at the lean that puts it as it stood or lay. When no spot is clear of what the
+    /// bin holds, it is let go above the rim over the middle. Returns the plan and the body as
+    /// it will rest on the floor.
     pub fn plan_drop(
         &self,
         picked: &CylinderPick,
         bin: &BinBody,
         in_bin: &[PerceivedObstacle],
+    ) -> Result<(PlacePlan, PerceivedObstacle), Failure> {
+        self.drop_into(picked, bin, in_bin, true)
+    }
+
+    /// [`Self::plan_drop`], letting go over the floor only when `low` allows it.
+    fn drop_into(
+        &self,
+        picked: &CylinderPick,
+        bin: &BinBody,
+        in_bin: &[PerceivedObstacle],
+        low: bool,
     ) -> Result<(PlacePlan, PerceivedObstacle), Failure> {
         let carried = &picked.carried;
         let axis_in_tcp = carried.tcp_from_shape.rotation * Vector3::y();
@@ -87,17 +104,31 @@ impl PickPlanner {
         let limits = picked.payload.tool_limits();
         let above_z = rim_z + DROP_ABOVE_RIM_M + DROP_APPROACH_M + below_tcp_m;
         let mut last = None;
-        let release_z = rim_z + DROP_ABOVE_RIM_M;
+        // Set down low, the body's lowest point just over the floor, at any spot and yaw where
+        // the arm takes it there clear of the walls; else let go just above the rim. A body
+        // dropped from the rim falls the bin's depth and more: a standing bottle topples, or,
+        // turned in the jaws on the way (they hold a round body on a line), lands across the
+        // rim; one set down on the floor stays where it was put.
+        let heights: Vec<f64> = low
+            .then_some(floor.z + DROP_ABOVE_FLOOR_M)
+            .into_iter()
+            .chain([rim_z + DROP_ABOVE_RIM_M])
+            .collect();
         // The body's middle from the TCP, world, with the tool at `yaw_deg`.
         let body_offset = |yaw_deg: f64| {
             let world_from_tcp = self.world_from_base
                 * self.base_from_tcp(Vector3::zeros(), yaw_deg.to_radians(), tilt_rad);
             world_from_tcp.rotation * carried.tcp_from_shape.translation.vector
         };
-        let tries = spots
-            .iter()
-            .flat_map(|s| yaws.iter().map(move |&yaw_deg| (*s, yaw_deg)));
-        for ([dx, dy], yaw_deg) in tries {
+        let mut tries = Vec::new();
+        for &release_z in &heights {
+            for s in &spots {
+                for &yaw_deg in &yaws {
+                    tries.push((release_z, *s, yaw_deg));
+                }
+            }
+        }
+        for (release_z, [dx, dy], yaw_deg) in tries {
             let place_z = release_z + below_tcp_m;
             let offset = body_offset(yaw_deg);
             let spot = PlaceSpot {
@@ -159,7 +190,7 @@ impl PickPlanner {
         // No spot clear of what the bin holds: over its middle all the same (the bodies in it
         // have seldom come to rest where they were let go; a drop onto them ends in the bin
         // about as often as not, measured in docs/removal.md).
-        self.plan_drop(picked, bin, &[])
+        self.drop_into(picked, bin, &[], false)
     }
 
     /// Tool yaws at a place (deg, in 1 degree steps) that put the carried body's axis along one
