@@ -33,13 +33,14 @@ const CORNER_INSET_M: f64 = 0.012;
 
 impl PickPlanner {
     /// The drop of a picked cylinder into `bin`, where `in_bin` (world) already lies: the body
-    /// (not the TCP: a grip off its middle shifts it) carried over the bin's middle, a lying one
-    /// along a diagonal, or when what is in the bin takes the middle, a standing body over a
-    /// free corner; lowered until its lowest point is just over the floor where the arm clears
-    /// the walls at some spot and yaw, else just above the rim, and let go, clear of what is in
-    /// the bin, at the lean that puts it as it stood or lay. When no spot is clear of what the
-    /// bin holds, it is let go above the rim over the middle. Returns the plan and the body as
-    /// it will rest on the floor.
+    /// (not the TCP: a grip off its middle shifts it) set down with its lowest point just over
+    /// the floor where the arm clears the walls at some spot and yaw: a lying one against a wall
+    /// and along it, else over the middle along a diagonal; a standing one over the middle, or
+    /// when what is in the bin takes the middle, over a free corner. Where none is reachable
+    /// that low, it is let go just above the rim over the middle (a standing one over a free
+    /// corner). Either way clear of what is in the bin, at the lean that puts it as it stood or
+    /// lay. When no spot is clear of what the bin holds, it is let go above the rim over the
+    /// middle. Returns the plan and the body as it will rest on the floor.
     pub fn plan_drop(
         &self,
         picked: &CylinderPick,
