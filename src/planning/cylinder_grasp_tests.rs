@@ -299,8 +299,23 @@ fn released(planner: &PickPlanner, picked: &CylinderPick, drop: &PlacePlan) -> I
     planner.world_from_base * tcp_pose(&planner.model, &q) * picked.carried.tcp_from_shape
 }
 
+/// The lowest point of the carried body let go where `drop` lets it go, world z, m.
+fn released_lowest_z(planner: &PickPlanner, picked: &CylinderPick, drop: &PlacePlan) -> f64 {
+    let pose = released(planner, picked, drop);
+    let aabb = picked
+        .carried
+        .shape
+        .compute_aabb(&crate::math::pose_to_physics(&pose));
+    f64::from(aabb.mins.z)
+}
+
 #[test]
-fn a_picked_bottle_is_let_go_just_above_the_rim_over_the_bins_middle() {
+fn a_picked_bottle_is_set_down_low_in_an_empty_bin() {
+    // Dropped from above the rim, a standing bottle falls the bin's depth and topples, or lands
+    // across the rim when it has turned in the jaws; set down, it stays. Drawn over bins (0.2-0.3
+    // m) and bottles' yaws, standing and lying: a standing one is always set down just over the
+    // floor over the middle; a lying one, as long as the bin is wide, where the jaws clear the
+    // walls (along one, or along the middle's diagonal), else just above the rim.
     let planner = planner();
     let mut rng = crate::rng::SimRng::new(25);
     for draw in 0..4 {
@@ -315,28 +330,80 @@ fn a_picked_bottle_is_let_go_just_above_the_rim_over_the_bins_middle() {
                 panic!("draw {draw}: no drop (lying {lying}): {drop:?}");
             };
             let pose = released(&planner, &picked, &drop);
-            let carried = &picked.carried;
-            let aabb = carried
-                .shape
-                .compute_aabb(&crate::math::pose_to_physics(&pose));
-            let lowest_z = f64::from(aabb.mins.z);
-            let rim_z = bin.floor_center.z + bin.wall_height;
+            let lowest_z = released_lowest_z(&planner, &picked, &drop);
+            let floor_z = bin.floor_center.z;
+            let rim_z = floor_z + bin.wall_height;
+            let low = lowest_z > floor_z + 0.008 && lowest_z < floor_z + 0.03;
+            let over_rim = lowest_z > rim_z && lowest_z < rim_z + 0.05;
             assert!(
-                lowest_z > rim_z && lowest_z < rim_z + 0.05,
-                "draw {draw}, lying {lying}: let go with its bottom at {lowest_z:.3} m, rim at \
-                 {rim_z:.3} m"
+                low || (lying && over_rim),
+                "draw {draw}, lying {lying}: let go with its bottom at {lowest_z:.3} m, floor at \
+                 {floor_z:.3} m, rim at {rim_z:.3} m"
             );
-            // An empty bin: the body's middle over its middle (a lying bottle is gripped off
-            // its middle, where its straight body is).
+            // An empty bin: a standing body's middle over its middle; a lying one (gripped off
+            // its middle, where its straight body is) over the middle or along a wall, within
+            // the walls either way.
             let off = (pose.translation.vector - bin.floor_center).xy().norm();
             assert!(
-                off < 1e-3,
+                lying || off < 1e-3,
                 "draw {draw}, lying {lying}: {off} m off the middle"
             );
+            let aabb = picked
+                .carried
+                .shape
+                .compute_aabb(&crate::math::pose_to_physics(&pose));
+            for i in 0..2 {
+                let half = bin.size[i] / 2.0;
+                let (lo, hi) = (
+                    f64::from(aabb.mins[i]) - bin.floor_center[i],
+                    f64::from(aabb.maxs[i]) - bin.floor_center[i],
+                );
+                assert!(
+                    lo > -half && hi < half,
+                    "draw {draw}, lying {lying}: let go over the wall ({lo:.3}..{hi:.3} m, half \
+                     {half:.3} m)"
+                );
+            }
             // Where it will rest: on the floor, under where it was let go.
             let rest = rests.world_from_shape.translation.vector;
             assert!((rest.xy() - pose.translation.vector.xy()).norm() < 1e-9);
             assert!(rest.z < pose.translation.vector.z);
+        }
+    }
+}
+
+#[test]
+fn a_bottle_is_not_set_down_onto_what_the_bin_holds() {
+    // A bin whose floor is covered (a low body over all of it): no spot is clear, and the bottle
+    // is let go over the middle above the rim, not lowered onto what lies there.
+    let planner = planner();
+    let mut rng = crate::rng::SimRng::new(2026);
+    for draw in 0..3 {
+        let bin = waste_bin(&mut rng);
+        let floor = bin.floor_center;
+        let cover = crate::planning::cylinder_obstacle(
+            "bottle",
+            &nalgebra::Point3::new(floor.x, floor.y, floor.z + 0.02),
+            &Vector3::z(),
+            bin.size[0] * 0.7,
+            0.04,
+        );
+        for lying in [true, false] {
+            let cylinder = bottle([0.05, -0.45], lying, rng.range(0.0, 3.0));
+            let Ok(picked) = planner.plan_cylinder_pick(&cylinder, &[], &home(), 1.0) else {
+                panic!("no grasp (lying {lying})");
+            };
+            let drop = planner.plan_drop(&picked, &bin, std::slice::from_ref(&cover));
+            let Ok((drop, _)) = drop else {
+                panic!("draw {draw}: no drop (lying {lying}): {drop:?}");
+            };
+            let lowest_z = released_lowest_z(&planner, &picked, &drop);
+            let rim_z = floor.z + bin.wall_height;
+            assert!(
+                lowest_z > rim_z,
+                "draw {draw}, lying {lying}: let go at {lowest_z:.3} m, below the rim at \
+                 {rim_z:.3} m, onto what the bin holds"
+            );
         }
     }
 }
@@ -410,6 +477,60 @@ fn a_bottle_gripped_at_a_lean_is_let_go_as_it_stood_or_lay() {
                 "draw {draw}, lying {lying}, lean {:.1} deg: let go {off_deg:.1} deg off",
                 lean.to_degrees()
             );
+        }
+    }
+}
+
+#[test]
+fn lying_bottles_removed_one_after_another_are_set_down_side_by_side_in_a_tote() {
+    // A tote about 400 x 300 mm takes two 200 mm bottles lying side by side along its longer
+    // walls, both set down low; one laid along the middle's diagonal would leave the second no
+    // clear spot. Drawn over tote sizes and places, and the bottles' yaws on the belt.
+    let planner = planner();
+    let mut rng = crate::rng::SimRng::new(4315);
+    for draw in 0..3 {
+        let (long, short) = (rng.range(0.38, 0.45), rng.range(0.28, 0.32));
+        let size = if draw % 2 == 0 {
+            [long, short]
+        } else {
+            [short, long]
+        };
+        let bin = BinBody {
+            name: "waste".into(),
+            floor_center: Vector3::new(rng.range(0.42, 0.48), rng.range(-0.08, -0.02), 0.5),
+            size,
+            wall_height: 0.08,
+        };
+        let mut in_bin: Vec<PerceivedObstacle> = Vec::new();
+        for k in 0..2 {
+            let cylinder = bottle([rng.range(0.0, 0.1), -0.45], true, rng.range(0.0, 3.0));
+            let Ok(picked) = planner.plan_cylinder_pick(&cylinder, &[], &home(), 1.0) else {
+                panic!("no grasp");
+            };
+            let drop = planner.plan_drop(&picked, &bin, &in_bin);
+            let Ok((drop, rests)) = drop else {
+                panic!("draw {draw}: no drop for bottle {k}: {drop:?}");
+            };
+            let lowest_z = released_lowest_z(&planner, &picked, &drop);
+            assert!(
+                lowest_z < bin.floor_center.z + 0.03,
+                "draw {draw}, bin {size:?}: bottle {k} let go with its bottom {:.3} m over the \
+                 floor",
+                lowest_z - bin.floor_center.z
+            );
+            let pose = crate::math::pose_to_physics(&released(&planner, &picked, &drop));
+            for other in &in_bin {
+                let other_pose = crate::math::pose_to_physics(&other.world_from_shape);
+                let gap = rapier3d::parry::query::distance(
+                    &pose,
+                    picked.carried.shape.as_ref(),
+                    &other_pose,
+                    other.shape.as_ref(),
+                )
+                .map_or(0.0, |d| f64::from(d.distance));
+                assert!(gap > 0.0, "draw {draw}: bottle {k} set down onto the first");
+            }
+            in_bin.push(rests);
         }
     }
 }
