@@ -36,6 +36,16 @@ pub struct BeltBand {
     pub half_width_m: f64,
 }
 
+impl BeltBand {
+    /// The band of the scenario's belt.
+    pub fn of(conveyor: &crate::scenario::ConveyorSection) -> Self {
+        Self {
+            centre_y_m: conveyor.belt_center_m[1],
+            half_width_m: conveyor.width_m / 2.0,
+        }
+    }
+}
+
 impl BottleFitter {
     /// Adds to `seen` the bottles in `e`'s frame that no box holds: patches of bright pixels on
     /// the belt's `band` outside `part_boxes` (grown) and outside the outline of every pose of

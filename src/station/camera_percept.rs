@@ -269,10 +269,7 @@ impl CameraPerception {
             .fold(0.0, f64::max);
         let bottle_fitter = BottleFitter::new(rig.calibration, &scenario.bottle)
             .with_part_height(tallest_part_m)
-            .with_belt(BeltBand {
-                centre_y_m: scenario.conveyor.belt_center_m[1],
-                half_width_m: scenario.conveyor.width_m / 2.0,
-            });
+            .with_belt(BeltBand::of(&scenario.conveyor));
         Ok(Self {
             rig,
             roi_scale: scenario.camera.roi_scale,
@@ -430,10 +427,7 @@ impl CameraPerception {
             frame_px,
             belt_top_z_m,
             // A single part's look: bottles the detector missed are looked for on the belt.
-            matches!(rule, TargetRule::NearestStation).then(|| BeltBand {
-                centre_y_m: scenario.conveyor.belt_center_m[1],
-                half_width_m: scenario.conveyor.width_m / 2.0,
-            }),
+            matches!(rule, TargetRule::NearestStation).then(|| BeltBand::of(&scenario.conveyor)),
         );
         let mut at_station = target.map(|_| StationItem::Part);
         if matches!(rule, TargetRule::AtBeam(_)) {
