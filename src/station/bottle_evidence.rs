@@ -366,9 +366,10 @@ impl BottleFitter {
             // The hypotheses whose boxes explain the detection (compared clipped to the frame, as
             // below); the outline chooses among them. A box none explains (a fragment of a
             // bottle, two bottles in one box) is searched by the pixels as before.
-            let explaining: Vec<BottlePose> = self
-                .fit_candidates(box_px, belt_top_z_m)
-                .into_iter()
+            let candidates = self.fit_candidates(box_px, belt_top_z_m);
+            let explaining: Vec<BottlePose> = candidates
+                .iter()
+                .copied()
                 .filter(|p| {
                     self.projected_box(&p.world_from_bottle).is_some_and(|b| {
                         box_residual_px(&e.clip(b), box_px) <= RESIDUAL_SHARE * diagonal
@@ -387,7 +388,7 @@ impl BottleFitter {
                     continue;
                 }
             }
-            let poses = self.fit(box_px, belt_top_z_m);
+            let poses = self.fit_among(candidates);
             let poses = self.keep_supported(poses, box_px, e.image, e.scale);
             let supports: Vec<Option<f64>> = poses
                 .iter()

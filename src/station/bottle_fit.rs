@@ -172,7 +172,12 @@ impl BottleFitter {
     /// `AMBIGUITY_PX` (2 px) of it are returned, best first: a lying bottle seen from above can look
     /// the same at mirrored yaws, and the planner must keep clear of each.
     pub fn fit(&self, box_px: &[f64; 4], belt_top_z_m: f64) -> Vec<BottlePose> {
-        let poses = self.fit_candidates(box_px, belt_top_z_m);
+        self.fit_among(self.fit_candidates(box_px, belt_top_z_m))
+    }
+
+    /// Of `poses` from [`Self::fit_candidates`] (best box first), the best and every distinct
+    /// pose within `AMBIGUITY_PX` of it: what [`Self::fit`] returns.
+    pub(super) fn fit_among(&self, poses: Vec<BottlePose>) -> Vec<BottlePose> {
         let best = poses.first().map_or(0.0, |p| p.residual_px);
         let mut kept: Vec<BottlePose> = Vec::new();
         for pose in poses {
