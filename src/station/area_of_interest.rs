@@ -9,6 +9,7 @@ use crate::perception::calibration::{MeasureOnPlane, PlaneBore};
 use crate::perception::roundness::DEFAULT_MAX_UPR;
 use crate::perception::{Bore, BoreDetector};
 use crate::render::SensorWindow;
+use crate::scenario::PartType;
 
 /// Share of a part box's side added on every side before the metrology looks inside it.
 const BOX_MARGIN: f64 = 0.15;
@@ -117,7 +118,7 @@ fn tube_box(
     Some(bounds)
 }
 
-/// Of the catalogue's tubes (`(radius_m, height_m)` each), the one whose silhouette, placed by
+/// Of the catalogue's tubes `part_types`, the one whose silhouette, placed by
 /// [`tube_from_box`], fills `box_px` best (least summed difference of width and height, px),
 /// with its end-face centre. A part whose bore was not measured is handled as it: the jaws
 /// close at its height. `None` when no tube places.
@@ -125,13 +126,14 @@ pub fn tube_type_from_box(
     calibration: &CameraCalibration,
     box_px: &[f64; 4],
     belt_z_m: f64,
-    tubes: &[(f64, f64)],
+    part_types: &[PartType],
 ) -> Option<(usize, Point3<f64>)> {
     let (w, h) = (box_px[2] - box_px[0], box_px[3] - box_px[1]);
-    tubes
+    part_types
         .iter()
+        .map(|t| (t.outer_diameter_mm / 2e3, t.height_mm / 1e3))
         .enumerate()
-        .filter_map(|(i, &(radius, height))| {
+        .filter_map(|(i, (radius, height))| {
             let face = tube_from_box(calibration, box_px, belt_z_m, radius, height)?;
             let b = tube_box(calibration, &face, radius, height)?;
             let misfit = ((b[2] - b[0]) - w).abs() + ((b[3] - b[1]) - h).abs();

@@ -22,8 +22,8 @@ use nalgebra::{Isometry3, Point3, Vector3};
 
 use super::bottle_fit::{BottleFitter, BottlePose};
 use super::bottle_outline::Cells;
-use super::bottle_unboxed::BeltBand;
 use super::camera_percept::BottleSighting;
+use super::measured_tube::{BeltScene, MeasuredTube};
 use super::silhouette::box_residual_px;
 use crate::detect::Detection;
 
@@ -246,6 +246,7 @@ impl BottleFitter {
         &self,
         box_px: &[f64; 4],
         belt_top_z_m: f64,
+        tubes: &[MeasuredTube],
         e: &Evidence<'_>,
     ) -> Option<BottlePose> {
         let bright = bright_pixels(box_px, e);
@@ -263,6 +264,12 @@ impl BottleFitter {
         };
         let eval = |lying: bool, yaw: f64, x: f64, y: f64| {
             let pose = self.pose_at(lying, yaw, x, y, belt_top_z_m);
+            if tubes
+                .iter()
+                .any(|t| self.passes_through(&pose, t, belt_top_z_m))
+            {
+                return 0.0;
+            }
             self.score(&pose, &bright, e).map_or(0.0, value)
         };
         let mut best: Option<(f64, bool, f64, f64, f64)> = None;
@@ -355,10 +362,11 @@ impl BottleFitter {
     pub fn sightings(
         &self,
         boxes: &[(usize, [f64; 4])],
-        belt_top_z_m: f64,
+        belt: &BeltScene<'_>,
         e: &Evidence<'_>,
         excluded: &[[f64; 4]],
     ) -> (Vec<BottleSighting>, Vec<usize>) {
+        let belt_top_z_m = belt.top_z_m;
         // Each box's poses, and whether its fit explained it.
         let mut fitted: Vec<(usize, Vec<BottlePose>, bool)> = Vec::new();
         for (k, (_, box_px)) in boxes.iter().enumerate() {
@@ -366,7 +374,12 @@ impl BottleFitter {
             // The hypotheses whose boxes explain the detection (compared clipped to the frame, as
             // below); the outline chooses among them. A box none explains (a fragment of a
             // bottle, two bottles in one box) is searched by the pixels as before.
-            let candidates = self.fit_candidates(box_px, belt_top_z_m);
+            // A pose through a measured tube is impossible.
+            let candidates = self.clear_of_tubes(
+                self.fit_candidates(box_px, belt_top_z_m),
+                belt.tubes,
+                belt_top_z_m,
+            );
             let explaining: Vec<BottlePose> = candidates
                 .iter()
                 .copied()
@@ -381,7 +394,7 @@ impl BottleFitter {
                     self.sees_belt(u, v, belt_top_z_m)
                 });
                 if let Some((poses, agreement)) =
-                    self.by_outline(&explaining, box_px, belt_top_z_m, &cells)
+                    self.by_outline(&explaining, box_px, belt_top_z_m, belt.tubes, &cells)
                     && agreement >= MIN_AGREEMENT
                 {
                     fitted.push((k, poses, true));
@@ -410,7 +423,7 @@ impl BottleFitter {
             let poses = if explained {
                 supported
             } else {
-                match self.search(box_px, belt_top_z_m, e) {
+                match self.search(box_px, belt_top_z_m, belt.tubes, e) {
                     Some(found) => vec![found],
                     None if !supported.is_empty() => supported,
                     None => poses,
@@ -510,9 +523,9 @@ pub fn bottle_sightings(
     detections: &[Detection],
     image: &RgbImage,
     frame_px: (u32, u32),
-    belt_top_z_m: f64,
-    band: Option<BeltBand>,
+    belt: &BeltScene<'_>,
 ) -> (Vec<BottleSighting>, Vec<usize>) {
+    let belt_top_z_m = belt.top_z_m;
     let scale = f64::from(image.width()) / f64::from(frame_px.0);
     let all: Vec<[f64; 4]> = detections.iter().map(|d| d.box_px.map(f64::from)).collect();
     match Evidence::new(image, scale, frame_px, &all) {
@@ -527,9 +540,9 @@ pub fn bottle_sightings(
                 .iter()
                 .map(|b| fitter.part_column(b, belt_top_z_m))
                 .collect();
-            let (mut sightings, holder) = fitter.sightings(boxes, belt_top_z_m, &e, &columns);
-            if let Some(band) = band {
-                fitter.unboxed(&mut sightings, &parts, band, belt_top_z_m, &e);
+            let (mut sightings, holder) = fitter.sightings(boxes, belt, &e, &columns);
+            if let Some(band) = belt.band {
+                fitter.unboxed(&mut sightings, &parts, band, belt_top_z_m, belt.tubes, &e);
             }
             (sightings, holder)
         }
@@ -539,7 +552,11 @@ pub fn bottle_sightings(
                 .map(|(detection, box_px)| BottleSighting {
                     detection: *detection,
                     poses: fitter.keep_supported(
-                        fitter.fit(box_px, belt_top_z_m),
+                        fitter.fit_among(fitter.clear_of_tubes(
+                            fitter.fit_candidates(box_px, belt_top_z_m),
+                            belt.tubes,
+                            belt_top_z_m,
+                        )),
                         box_px,
                         image,
                         scale,

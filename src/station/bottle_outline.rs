@@ -24,6 +24,7 @@ use nalgebra::{Isometry3, Point3};
 
 use super::bottle_evidence::Evidence;
 use super::bottle_fit::{BottleFitter, BottlePose};
+use super::measured_tube::MeasuredTube;
 use crate::render::material::Material;
 use crate::render::mesh::Mesh;
 
@@ -311,12 +312,14 @@ impl BottleFitter {
     /// the outline bears out, refined: each is judged by its agreement with `cells`; the best
     /// standing and the best lying at [`LYING_REFINED`] distinct yaws are refined; the best of
     /// those, and any other within [`AMBIGUITY_AGREEMENT`] of it, are returned best first, with
-    /// the best agreement. `None` when no hypothesis can be judged.
+    /// the best agreement. `None` when no hypothesis can be judged, or every refined one passes
+    /// through one of `tubes`.
     pub(super) fn by_outline(
         &self,
         candidates: &[BottlePose],
         box_px: &[f64; 4],
         belt_top_z_m: f64,
+        tubes: &[MeasuredTube],
         cells: &Cells,
     ) -> Option<(Vec<BottlePose>, f64)> {
         let mut judged: Vec<(BottlePose, f64)> = candidates
@@ -346,6 +349,12 @@ impl BottleFitter {
         let mut refined: Vec<(BottlePose, f64)> = starts
             .iter()
             .filter_map(|p| self.refined(p, box_px, belt_top_z_m, cells))
+            // Refined through a measured tube: impossible.
+            .filter(|(p, _)| {
+                !tubes
+                    .iter()
+                    .any(|t| self.passes_through(&p.world_from_bottle, t, belt_top_z_m))
+            })
             .collect();
         refined.sort_by(|a, b| b.1.total_cmp(&a.1));
         let best = refined.first()?.1;

@@ -12,6 +12,7 @@
 use super::bottle_evidence::{Evidence, segment_distance};
 use super::bottle_fit::{BottleFitter, BottlePose};
 use super::camera_percept::BottleSighting;
+use super::measured_tube::MeasuredTube;
 
 /// Grid points across the frame's width the scan reads (the grid is square).
 const SCAN_COLUMNS: f64 = 160.0;
@@ -58,6 +59,7 @@ impl BottleFitter {
         part_boxes: &[[f64; 4]],
         band: BeltBand,
         belt_top_z_m: f64,
+        tubes: &[MeasuredTube],
         e: &Evidence<'_>,
     ) {
         let (w, h) = e.frame_px();
@@ -136,7 +138,7 @@ impl BottleFitter {
                     ]
                 },
             );
-            let Some(pose) = self.search(&box_px, belt_top_z_m, e) else {
+            let Some(pose) = self.search(&box_px, belt_top_z_m, tubes, e) else {
                 continue;
             };
             if !self.covers(&pose, &points, MIN_PATCH_COVER) {
@@ -231,6 +233,7 @@ mod tests {
     use super::{BeltBand, patches};
     use crate::detect::Detection;
     use crate::rng::SimRng;
+    use crate::station::BeltScene;
     use crate::station::bottle_evidence::{bottle_sightings, segment_distance};
     use crate::station::bottle_fit::BottleFitter;
     use crate::station::bottle_fit::tests::{BELT_TOP_Z, fitter};
@@ -297,8 +300,11 @@ mod tests {
                 &detections,
                 &image,
                 (1280, 960),
-                BELT_TOP_Z,
-                Some(band),
+                &BeltScene {
+                    top_z_m: BELT_TOP_Z,
+                    band: Some(band),
+                    tubes: &[],
+                },
             );
             assert_eq!(seen.len(), 1, "draw {drawn}: {} sightings", seen.len());
             let pose = &seen[0].poses[0];
@@ -324,8 +330,11 @@ mod tests {
                 &detections,
                 &bare,
                 (1280, 960),
-                BELT_TOP_Z,
-                Some(band),
+                &BeltScene {
+                    top_z_m: BELT_TOP_Z,
+                    band: Some(band),
+                    tubes: &[],
+                },
             );
             assert!(none.is_empty(), "draw {drawn}: a bottle in an empty belt");
             // Boxed, it is one sighting.
@@ -345,8 +354,11 @@ mod tests {
                 &both,
                 &image,
                 (1280, 960),
-                BELT_TOP_Z,
-                Some(band),
+                &BeltScene {
+                    top_z_m: BELT_TOP_Z,
+                    band: Some(band),
+                    tubes: &[],
+                },
             );
             assert_eq!(
                 once.len(),

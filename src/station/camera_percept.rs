@@ -23,6 +23,7 @@ use super::bore_floor::station_bore_params;
 use super::bottle_evidence::bottle_sightings;
 use super::bottle_fit::{BottleFitter, BottlePose};
 use super::bottle_unboxed::BeltBand;
+use super::measured_tube::{BeltScene, MeasuredTube};
 use super::sighting_percept::touched_borders;
 use super::type_reader::TypeReader;
 use crate::camera::CameraCalibration;
@@ -419,27 +420,17 @@ impl CameraPerception {
             parts.push((index, type_index, centre_px));
         }
         let frame_px = (self.rig.width_px, self.rig.height_px);
-        let (bottles, holder) = bottle_sightings(
-            &self.bottle_fitter,
-            &bottles,
-            &detections,
-            &image,
-            frame_px,
-            belt_top_z_m,
-            // A single part's look: bottles the detector missed are looked for on the belt.
-            matches!(rule, TargetRule::NearestStation).then(|| BeltBand::of(&scenario.conveyor)),
-        );
         let mut at_station = target.map(|_| StationItem::Part);
+        // The bottle box at the beam, if that is what is there (its sighting is fitted below).
+        let mut beam_bottle = None;
         if matches!(rule, TargetRule::AtBeam(_)) {
-            target = None;
-            at_station = None;
+            (target, at_station) = (None, None);
             if let Some((d, part, bottle)) = at_beam {
                 if let Some(part) = part {
                     target = Some((d, part));
                     at_station = Some(StationItem::Part);
-                } else if let Some(bottle) = bottle {
-                    at_station = Some(StationItem::Bottle(holder[bottle]));
                 }
+                beam_bottle = bottle;
             }
         }
         let mut target_sighting = None;
@@ -495,15 +486,11 @@ impl CameraPerception {
                         None => {
                             let mut decision = self.type_reader.unmeasured();
                             // Handled as the catalogue's tube whose silhouette fills the box.
-                            let tubes: Vec<(f64, f64)> = scenario
-                                .part_types
-                                .iter()
-                                .map(|t| (t.outer_diameter_mm / 2e3, t.height_mm / 1e3))
-                                .collect();
-                            let calibration = &self.rig.calibration;
+                            let (calibration, kinds) =
+                                (&self.rig.calibration, &scenario.part_types);
                             if let Some((best, _)) = (!cut)
                                 .then(|| {
-                                    tube_type_from_box(calibration, &box_px, belt_top_z_m, &tubes)
+                                    tube_type_from_box(calibration, &box_px, belt_top_z_m, kinds)
                                 })
                                 .flatten()
                             {
@@ -575,6 +562,18 @@ impl CameraPerception {
             } else {
                 other_parts.push(sighting);
             }
+        }
+        // The bottles, fitted clear of the tubes whose bores were measured; a single part's look
+        // also looks on the belt for bottles the detector missed.
+        let tubes =
+            MeasuredTube::of_sightings(target_sighting.iter().chain(&other_parts), scenario);
+        let single = matches!(rule, TargetRule::NearestStation);
+        let belt = BeltScene::of_look(scenario, belt_top_z_m, single, &tubes);
+        let fitter = &self.bottle_fitter;
+        let (bottles, holder) =
+            bottle_sightings(fitter, &bottles, &detections, &image, frame_px, &belt);
+        if let Some(bottle) = beam_bottle {
+            at_station = Some(StationItem::Bottle(holder[bottle]));
         }
         let metrology_ms = started.elapsed().as_secs_f64() * 1e3 - window_render_ms;
         render_ms += window_render_ms;

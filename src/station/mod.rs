@@ -15,6 +15,7 @@ mod bottle_outline;
 mod bottle_unboxed;
 pub mod camera_percept;
 mod frame_check;
+mod measured_tube;
 pub mod lying_part;
 pub mod metrology_study;
 mod percept;
@@ -34,6 +35,7 @@ pub use camera_percept::{
 };
 pub use frame_check::{BLANK_LEVEL, black_frame, frame_is_blank};
 pub use lying_part::{LyingPart, LyingPartFinder, TubeSize};
+pub use measured_tube::{BeltScene, MeasuredTube};
 pub use metrology_study::{ErrorSummary, KnownPart, MetrologyStudy, ShotErrors, StudySummary};
 pub use percept::{PerceivedObstacle, Percept, bottle_obstacle, part_obstacle};
 pub use sighting_percept::{NEIGHBOURHOOD_M, StationModel};
