@@ -202,7 +202,13 @@ impl Sorter<'_> {
                     let Some(percept) = &state.percept else {
                         return fail(FailureReason::Panic, "grasp without a percept");
                     };
-                    let radius_m = percept.part_outer_radius_m;
+                    // A part whose type no measurement named is handled as the tube that fills
+                    // its box, a guess: the jaws then hold it if they stop short of the
+                    // catalogue's slimmest tube.
+                    let radius_m = match percept.unidentified {
+                        Some(_) => slimmest_radius_m(model).min(percept.part_outer_radius_m),
+                        None => percept.part_outer_radius_m,
+                    };
                     grasp(model, data, self.grip_recipe_n, radius_m)?;
                     state.hold = Some(HoldMonitor {
                         tcp_from_part: data.tcp_from_part(model.arm_model(), self.current)?,
@@ -328,6 +334,16 @@ pub(super) fn decide(model: &CellModel, percept: &Percept) -> (DecisionRecord, O
             .or_else(|| percept.inconsistency.clone()),
     };
     (decision, bin)
+}
+
+/// The outer radius of the catalogue's slimmest tube, m.
+fn slimmest_radius_m(model: &CellModel) -> f64 {
+    model
+        .scenario()
+        .part_types
+        .iter()
+        .map(|t| t.outer_diameter_mm / 2e3)
+        .fold(f64::INFINITY, f64::min)
 }
 
 /// Closes the jaws with `grip_force_n`: the drive runs its stroke to fully closed, then holds; a
