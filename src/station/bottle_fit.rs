@@ -7,7 +7,7 @@ use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 
 use super::bottle_outline::Outline;
 use super::bottle_unboxed::BeltBand;
-use super::silhouette::{Silhouette, box_residual_px};
+use super::silhouette::{CutBox, Silhouette, box_residual_px};
 use crate::camera::CameraCalibration;
 use crate::render::mesh::Mesh;
 use crate::scenario::BottleSection;
@@ -18,6 +18,8 @@ const EDGE_HEIGHT_M: f64 = 0.03;
 const LYING_YAW_STEPS: usize = 180;
 /// A hypothesis within this box residual of the best one is kept as well, pixels.
 const AMBIGUITY_PX: f64 = 2.0;
+/// A box side within this share of the frame's width (height) of its border is cut by it.
+const CUT_SHARE: f64 = 0.01;
 
 /// A lying pose whose axis the image supports less than this share of the best lying pose's
 /// is taken for that one's mirror image in the box, and dropped.
@@ -60,6 +62,9 @@ pub struct BottleFitter {
     /// The belt the bottles stand on: pixels that show what lies beyond its edges are not read
     /// against the belt's colour ([`Self::sees_belt`]).
     pub(super) belt: Option<BeltBand>,
+    /// The frame the boxes come from, px: a box its border cuts also gets a standing
+    /// hypothesis placed by its whole sides (`None`: none).
+    frame_px: Option<(f64, f64)>,
 }
 
 impl BottleFitter {
@@ -77,7 +82,15 @@ impl BottleFitter {
             outline: Outline::of_mesh(&mesh),
             part_height_m: 0.0,
             belt: None,
+            frame_px: None,
         }
+    }
+
+    /// The fitter with its boxes from a `width_px` x `height_px` frame: a box the frame's
+    /// border cuts also gets a standing hypothesis placed by the sides the border leaves whole.
+    pub fn with_frame(mut self, width_px: u32, height_px: u32) -> Self {
+        self.frame_px = Some((f64::from(width_px), f64::from(height_px)));
+        self
     }
 
     /// The fitter with the bottles on `belt` (without, every pixel is read against the belt's
@@ -222,6 +235,25 @@ impl BottleFitter {
                 world_from_bottle: self.pose_at(lying, yaw, x, y, belt_top_z_m),
                 lying,
                 residual_px,
+            });
+        }
+        // A box the frame's border cuts: centred on the cut box, a standing bottle lands tens of
+        // millimetres in from the border, so it is also placed by the sides the border leaves
+        // whole, its box clipped to the frame.
+        let cut = self
+            .frame_px
+            .and_then(|frame| CutBox::of(box_px, frame, CUT_SHARE));
+        let standing_at = |x, y| self.pose_at(false, 0.0, x, y, belt_top_z_m);
+        let mid_z = belt_top_z_m + self.height_m / 2.0;
+        if let Some(cut) = cut
+            && let Some(([x, y], b)) =
+                self.silhouette
+                    .slide_to_cut_box(&self.calibration, &cut, mid_z, standing_at)
+        {
+            poses.push(BottlePose {
+                world_from_bottle: standing_at(x, y),
+                lying: false,
+                residual_px: box_residual_px(&b, box_px),
             });
         }
         poses.sort_by(|a, b| a.residual_px.total_cmp(&b.residual_px));
@@ -386,6 +418,7 @@ pub(super) mod tests {
 
     use super::*;
     use crate::rng::SimRng;
+    use crate::station::silhouette::CutBox;
 
     pub(in crate::station) const BELT_TOP_Z: f64 = 0.70;
 
@@ -451,6 +484,60 @@ pub(super) mod tests {
             assert_eq!(kept[0].world_from_bottle, truth, "draw {draw}");
             let plain = frame(&f, &truth, 90, 92);
             assert_eq!(f.keep_supported(poses, &box_px, &plain, 0.5).len(), 2);
+        }
+    }
+
+    /// A standing bottle at the view's edge, its box cut by the frame's border on one or two
+    /// sides: placed by the box's whole sides, a standing hypothesis lands on it; centred on
+    /// the cut box, the only one without the frame lands millimetres to tens of millimetres in
+    /// from the border.
+    #[test]
+    fn a_box_the_border_cuts_gets_a_standing_hypothesis_by_its_whole_sides() {
+        let whole = fitter();
+        let framed = fitter().with_frame(1280, 960);
+        let station = [0.05, -0.45];
+        // Offsets from the station that put part of the bottle out of view (the view spans
+        // about +-0.23 m across and +-0.17 m along the image's axes at the belt).
+        let offsets = [
+            [0.0, 0.20],
+            [0.0, -0.21],
+            [0.16, 0.0],
+            [-0.15, 0.0],
+            [0.15, 0.19],
+            [-0.14, -0.2],
+        ];
+        for [dx, dy] in offsets {
+            let truth = Isometry3::translation(station[0] + dx, station[1] + dy, BELT_TOP_Z);
+            let Some(b) = whole.projected_box(&truth) else {
+                panic!("({dx}, {dy}): out of view");
+            };
+            let Some(cut) = CutBox::of(&b, (1280.0, 960.0), 0.0) else {
+                panic!("({dx}, {dy}): not cut by the border: {b:?}");
+            };
+            let detection = cut.clip(&b);
+            // The nearest standing hypothesis to the truth, m.
+            let nearest_m = |f: &BottleFitter| {
+                let t = truth.translation.vector;
+                f.fit_candidates(&detection, BELT_TOP_Z)
+                    .iter()
+                    .filter(|p| !p.lying)
+                    .map(|p| {
+                        let p = p.world_from_bottle.translation.vector;
+                        (p.x - t.x).hypot(p.y - t.y)
+                    })
+                    .fold(f64::INFINITY, f64::min)
+            };
+            let (framed_m, whole_m) = (nearest_m(&framed), nearest_m(&whole));
+            assert!(
+                framed_m < 0.005,
+                "({dx}, {dy}): {:.1} mm off by the whole sides",
+                framed_m * 1e3
+            );
+            assert!(
+                whole_m > 0.005,
+                "({dx}, {dy}): only {:.1} mm off centred on the cut box",
+                whole_m * 1e3
+            );
         }
     }
 }

@@ -270,7 +270,8 @@ impl CameraPerception {
             .fold(0.0, f64::max);
         let bottle_fitter = BottleFitter::new(rig.calibration, &scenario.bottle)
             .with_part_height(tallest_part_m)
-            .with_belt(BeltBand::of(&scenario.conveyor));
+            .with_belt(BeltBand::of(&scenario.conveyor))
+            .with_frame(rig.width_px, rig.height_px);
         Ok(Self {
             rig,
             roi_scale: scenario.camera.roi_scale,

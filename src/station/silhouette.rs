@@ -108,6 +108,102 @@ impl Silhouette {
     }
 }
 
+/// A detection box cut by the frame's border: which of its sides lie on the border, and the
+/// frame it was cut by.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CutBox {
+    /// The box, `x0, y0, x1, y1`, px.
+    pub box_px: [f64; 4],
+    /// Per side (left, top, right, bottom), whether the border cuts it.
+    pub cut: [bool; 4],
+    /// The frame's width and height, px.
+    pub frame_px: (f64, f64),
+}
+
+impl CutBox {
+    /// `box_px` in a `frame_px` frame, its sides within `share` of the frame's width (height)
+    /// of the border cut; `None` when no side is.
+    pub fn of(box_px: &[f64; 4], frame_px: (f64, f64), share: f64) -> Option<Self> {
+        let (w, h) = frame_px;
+        let (mx, my) = (share * w, share * h);
+        let cut = [
+            box_px[0] <= mx,
+            box_px[1] <= my,
+            box_px[2] >= w - mx,
+            box_px[3] >= h - my,
+        ];
+        cut.contains(&true).then_some(Self {
+            box_px: *box_px,
+            cut,
+            frame_px,
+        })
+    }
+
+    /// `b` clipped to the frame.
+    pub fn clip(&self, b: &[f64; 4]) -> [f64; 4] {
+        let (w, h) = self.frame_px;
+        [
+            b[0].clamp(0.0, w),
+            b[1].clamp(0.0, h),
+            b[2].clamp(0.0, w),
+            b[3].clamp(0.0, h),
+        ]
+    }
+
+    /// The point of `b` that a fit matches with the same point of the detection: per axis, the
+    /// middle when neither side or both are cut, else the side the border leaves whole.
+    fn anchor(&self, b: &[f64; 4]) -> [f64; 2] {
+        let along = |low: usize, high: usize| match (self.cut[low], self.cut[high]) {
+            (false, true) => b[low],
+            (true, false) => b[high],
+            _ => (b[low] + b[high]) / 2.0,
+        };
+        [along(0, 2), along(1, 3)]
+    }
+}
+
+impl Silhouette {
+    /// As [`Self::slide_to_centre`] for a detection cut by the frame: the body's box, clipped to
+    /// the frame, is matched to the detection on the sides the border leaves whole (on an axis
+    /// cut at one side only, by the other side; otherwise by the middle). Returns the place and
+    /// the clipped box there.
+    pub fn slide_to_cut_box(
+        &self,
+        camera: &CameraCalibration,
+        detection: &CutBox,
+        mid_z: f64,
+        pose_at: impl Fn(f64, f64) -> Isometry3<f64>,
+    ) -> Option<([f64; 2], [f64; 4])> {
+        let on_mid_plane = |p: [f64; 2]| camera.pixel_to_height(p[0], p[1], mid_z);
+        let d = &detection.box_px;
+        let start = on_mid_plane([(d[0] + d[2]) / 2.0, (d[1] + d[3]) / 2.0]).ok()?;
+        let want_px = detection.anchor(d);
+        let (mut x, mut y) = (start.x, start.y);
+        let mut fitted = None;
+        for _ in 0..FIT_ITERATIONS {
+            let Some(b) = self.projected_box(camera, &pose_at(x, y)) else {
+                break;
+            };
+            let clipped = detection.clip(&b);
+            fitted = Some(clipped);
+            // Move by the anchors' offset, measured on the plane through the body's middle.
+            let (Ok(at), Ok(want)) = (
+                on_mid_plane(detection.anchor(&clipped)),
+                on_mid_plane(want_px),
+            ) else {
+                break;
+            };
+            let (dx, dy) = (want.x - at.x, want.y - at.y);
+            x += dx;
+            y += dy;
+            if dx.hypot(dy) < CONVERGED_M {
+                break;
+            }
+        }
+        fitted.map(|b| ([x, y], b))
+    }
+}
+
 /// The RMS difference of two boxes' four sides, pixels.
 pub fn box_residual_px(a: &[f64; 4], b: &[f64; 4]) -> f64 {
     ((0..4).map(|k| (a[k] - b[k]).powi(2)).sum::<f64>() / 4.0).sqrt()
