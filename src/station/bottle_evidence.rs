@@ -356,8 +356,9 @@ impl BottleFitter {
     }
 
     /// The bottles of one frame: each detector box `boxes[k]` (its detection index and box,
-    /// calibration pixels) fitted, its poses checked against the pixels of `e` (a box no pose
-    /// explains searched by the pixels), and sightings of one bottle merged. Returns the
+    /// calibration pixels) fitted on the `belt` clear of its measured tubes, its poses checked
+    /// against the pixels of `e` (a box no pose explains searched by the pixels), and sightings
+    /// of one bottle merged. Returns the
     /// sightings and, per box, the index of the sighting that holds it.
     pub fn sightings(
         &self,
@@ -513,10 +514,10 @@ fn segments_distance(
 
 /// The bottle sightings of a look: `boxes` (the bottle detections' indices in `detections` and
 /// boxes, calibration pixels of a `frame_px` frame) fitted by `fitter` and checked against
-/// `image`; with, per box, the index of the sighting that holds it. With a belt `band`, the
-/// bottles no box holds are then looked for in the pixels (`BottleFitter::unboxed`) and follow
-/// the boxes' sightings. When the image shows too little of the belt to be read, each box is
-/// fitted alone.
+/// `image`, on the `belt`: no pose passes through one of its measured tubes. With the belt's
+/// band, the bottles no box holds are then looked for in the pixels (`BottleFitter::unboxed`)
+/// and follow the boxes' sightings. When the image shows too little of the belt to be read, each
+/// box is fitted alone.
 pub fn bottle_sightings(
     fitter: &BottleFitter,
     boxes: &[(usize, [f64; 4])],

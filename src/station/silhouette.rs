@@ -1,6 +1,7 @@
 //! A rigid body's outline as the calibrated camera sees it: its points projected to the box
-//! they span, and a body slid over a plane until its box is centred where a detection's is. The
-//! bottle fit and the lying-part fit share it.
+//! they span, and a body slid over a plane until its box is centred where a detection's is (or,
+//! for a detection the frame's border cuts, until its clipped box meets the detection's whole
+//! sides). The bottle fit and the lying-part fit share it.
 
 use nalgebra::{Isometry3, Point3};
 
