@@ -495,19 +495,25 @@ impl PickPlanner {
     }
 }
 
-/// Drops from `percept` what can only be its part seen a second time: an "other part" whose
-/// centre stands inside the part's own footprint (two upright tubes cannot stand inside each
-/// other). Its box, drawn over the part with another type's larger radius, would stand in the
-/// jaws' way to the part. One centred further off is kept: it may be a neighbour, or a bottle's
-/// cap read as a tube's end face.
+/// Drops from `percept` what can only be its part seen a second time: an "other part" that
+/// would pass through the part, its axis nearer the part's than their two radii less
+/// [`SECOND_LOOK_SLACK_M`] (two upright tubes cannot stand inside each other). Such a box,
+/// drawn over the part's side or over the part and a bottle beside it from a tilted camera, is
+/// placed 20-30 mm off the part with some type's radius and would stand in the jaws' way. A
+/// tube beside the part, touching it or a few millimetres into it as placed, is kept.
 pub fn drop_second_looks(percept: &mut Percept) {
     let [px, py] = percept.part_xy;
     let part_r = percept.part_outer_radius_m;
     percept.obstacles.retain(|o| {
         let c = o.world_from_shape.translation.vector;
-        o.name != OTHER_PART || (c.x - px).hypot(c.y - py) >= part_r
+        let other_r = o.shape.as_cylinder().map_or(0.0, |c| f64::from(c.radius));
+        o.name != OTHER_PART || (c.x - px).hypot(c.y - py) >= part_r + other_r - SECOND_LOOK_SLACK_M
     });
 }
+
+/// How far another tube's box may place it into the part before it is taken for the part seen
+/// again, m: a neighbour placed from its box may come this much too near.
+const SECOND_LOOK_SLACK_M: f64 = 0.008;
 
 /// Where in a bin the next part goes after `placed_before` others, from the floor's centre: the
 /// centre first; then the next free cell of a grid at BIN_SLOT_PITCH_M, nearest the centre

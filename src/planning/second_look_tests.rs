@@ -1,5 +1,5 @@
-//! The part seen twice is no obstacle to its own pick: an "other part" centred inside the
-//! part's footprint is dropped from the percept; a real neighbour, and every bottle, stay.
+//! The part seen twice is no obstacle to its own pick: an "other part" that would pass through
+//! the part is dropped from the percept; a real neighbour, and every bottle, stay.
 
 use nalgebra::{Isometry3, Point3};
 
@@ -55,15 +55,39 @@ fn a_second_detection_of_the_part_no_longer_blocks_its_pick() {
 }
 
 #[test]
+fn a_second_box_placed_beside_the_part_but_through_it_is_dropped() {
+    let mut rng = crate::rng::SimRng::new(2527);
+    for draw in 0..50 {
+        let part = [rng.range(-0.05, 0.15), rng.range(-0.5, -0.4)];
+        // A box over the part's side (or the part and a bottle beside it) from a tilted camera:
+        // placed 20-30 mm off with some type's radius, the two tubes would interpenetrate.
+        let radius_m = rng.range(0.017, 0.032);
+        let off_m = rng.range(0.02, 0.02 + radius_m - 0.0081);
+        let dir = rng.range(0.0, std::f64::consts::TAU);
+        let ghost = [part[0] + off_m * dir.cos(), part[1] + off_m * dir.sin()];
+        let mut seen = percept(part, vec![other_part(ghost, radius_m)]);
+        drop_second_looks(&mut seen);
+        assert!(
+            seen.obstacles.is_empty(),
+            "draw {draw}: a tube {:.1} mm off, radius {:.1} mm, kept",
+            off_m * 1e3,
+            radius_m * 1e3
+        );
+    }
+}
+
+#[test]
 fn neighbours_and_bottles_stay_obstacles() {
     let mut rng = crate::rng::SimRng::new(2526);
     for draw in 0..50 {
         let part = [rng.range(-0.05, 0.15), rng.range(-0.5, -0.4)];
         let dir = rng.range(0.0, std::f64::consts::TAU);
         let at = |d: f64| [part[0] + d * dir.cos(), part[1] + d * dir.sin()];
-        // A tube centred on or beyond the part's rim (a neighbour, or a bottle's cap read as
-        // an end face), and a bottle standing or lying anywhere, even overlapping the part.
-        let neighbour = other_part(at(rng.range(0.02, 0.1)), rng.range(0.017, 0.032));
+        // A tube beside the part (touching it, or placed up to 8 mm into it by its box, or
+        // further off), and a bottle standing or lying anywhere, even overlapping the part.
+        let radius_m = rng.range(0.017, 0.032);
+        let least_m = 0.02 + radius_m - 0.0079;
+        let neighbour = other_part(at(rng.range(least_m, least_m + 0.08)), radius_m);
         let bottle_xy = at(rng.range(0.0, 0.1));
         let lying = rng.range(0.0, 1.0) < 0.5;
         let pose = Isometry3::translation(bottle_xy[0], bottle_xy[1], BELT_TOP_Z);
