@@ -497,7 +497,7 @@ impl PickPlanner {
 
 /// Drops from `percept` what can only be its part seen a second time: an "other part" that
 /// would pass through the part, its axis nearer the part's than their two radii less
-/// [`SECOND_LOOK_SLACK_M`] (two upright tubes cannot stand inside each other). Such a box,
+/// `SECOND_LOOK_SLACK_M` (two upright tubes cannot stand inside each other). Such a box,
 /// drawn over the part's side or over the part and a bottle beside it from a tilted camera, is
 /// placed 20-30 mm off the part with some type's radius and would stand in the jaws' way. A
 /// tube beside the part, touching it or a few millimetres into it as placed, is kept.
