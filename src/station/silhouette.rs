@@ -85,17 +85,34 @@ impl Silhouette {
         mid_z: f64,
         pose_at: impl Fn(f64, f64) -> Isometry3<f64>,
     ) -> Option<([f64; 2], [f64; 4])> {
+        let centre = |b: &[f64; 4]| [(b[0] + b[2]) / 2.0, (b[1] + b[3]) / 2.0];
+        self.slide(camera, [centre_px; 2], mid_z, pose_at, |b| *b, centre)
+    }
+
+    /// Slides the body from over `start_px` until the point `anchor` picks of its box (as
+    /// `seen` turns it into what the detector would box) lies over `want_px`, each move measured
+    /// on the plane through the body's middle: the place reached and the seen box there.
+    fn slide(
+        &self,
+        camera: &CameraCalibration,
+        [start_px, want_px]: [[f64; 2]; 2],
+        mid_z: f64,
+        pose_at: impl Fn(f64, f64) -> Isometry3<f64>,
+        seen: impl Fn(&[f64; 4]) -> [f64; 4],
+        anchor: impl Fn(&[f64; 4]) -> [f64; 2],
+    ) -> Option<([f64; 2], [f64; 4])> {
         let on_mid_plane = |p: [f64; 2]| camera.pixel_to_height(p[0], p[1], mid_z);
-        let want = on_mid_plane(centre_px).ok()?;
-        let (mut x, mut y) = (want.x, want.y);
+        let start = on_mid_plane(start_px).ok()?;
+        let want = on_mid_plane(want_px);
+        let (mut x, mut y) = (start.x, start.y);
         let mut fitted = None;
         for _ in 0..FIT_ITERATIONS {
             let Some(b) = self.projected_box(camera, &pose_at(x, y)) else {
                 break;
             };
+            let b = seen(&b);
             fitted = Some(b);
-            // Move by the centre offset, measured on the plane through the body's middle.
-            let Ok(at) = on_mid_plane([(b[0] + b[2]) / 2.0, (b[1] + b[3]) / 2.0]) else {
+            let (Ok(at), Ok(want)) = (on_mid_plane(anchor(&b)), &want) else {
                 break;
             };
             let (dx, dy) = (want.x - at.x, want.y - at.y);
@@ -175,33 +192,11 @@ impl Silhouette {
         mid_z: f64,
         pose_at: impl Fn(f64, f64) -> Isometry3<f64>,
     ) -> Option<([f64; 2], [f64; 4])> {
-        let on_mid_plane = |p: [f64; 2]| camera.pixel_to_height(p[0], p[1], mid_z);
         let d = &detection.box_px;
-        let start = on_mid_plane([(d[0] + d[2]) / 2.0, (d[1] + d[3]) / 2.0]).ok()?;
-        let want_px = detection.anchor(d);
-        let (mut x, mut y) = (start.x, start.y);
-        let mut fitted = None;
-        for _ in 0..FIT_ITERATIONS {
-            let Some(b) = self.projected_box(camera, &pose_at(x, y)) else {
-                break;
-            };
-            let clipped = detection.clip(&b);
-            fitted = Some(clipped);
-            // Move by the anchors' offset, measured on the plane through the body's middle.
-            let (Ok(at), Ok(want)) = (
-                on_mid_plane(detection.anchor(&clipped)),
-                on_mid_plane(want_px),
-            ) else {
-                break;
-            };
-            let (dx, dy) = (want.x - at.x, want.y - at.y);
-            x += dx;
-            y += dy;
-            if dx.hypot(dy) < CONVERGED_M {
-                break;
-            }
-        }
-        fitted.map(|b| ([x, y], b))
+        let start_px = [(d[0] + d[2]) / 2.0, (d[1] + d[3]) / 2.0];
+        let ends = [start_px, detection.anchor(d)];
+        let clip = |b: &[f64; 4]| detection.clip(b);
+        self.slide(camera, ends, mid_z, pose_at, clip, |b| detection.anchor(b))
     }
 }
 
