@@ -22,6 +22,8 @@ import common
 
 TILT_BANDS = ((0.0, 10.0), (10.0, 20.0), (20.0, 30.0), (30.0, 35.0))
 BORE_BANDS_MM = ((8.0, 16.0), (16.0, 32.0), (32.0, 64.0), (64.0, 90.0))
+# Share of the end face in view: partly hidden by a bottle, or in the clear.
+VISIBLE_BANDS = ((0.5, 0.9), (0.9, 1.0))
 
 
 def in_band(value, band, last):
@@ -30,10 +32,52 @@ def in_band(value, band, last):
     return low <= value < high or (last and value == high)
 
 
+def face_visible(obj, meta):
+    """The share of a tube's end face the camera sees past the bottles, from the label metadata
+    (1 for sets rendered before it was recorded)."""
+    for t in meta.get("tubes", []):
+        if t.get("position_m") == obj.get("position_m"):
+            return t.get("face_visible", 1.0)
+    return 1.0
+
+
+def tube_subset(detections, targets, metas, tube, names, threshold, keep_tube):
+    """The tube class's AP and recall over the tubes `keep_tube(object, meta)` keeps (the other
+    tubes ignored: their truths dropped, and the detections that hit them); None when none is
+    kept."""
+    dets_b, tgts_b, truths = [], [], 0
+    for dets, t, m in zip(detections, targets, metas):
+        if not m:
+            continue
+        keep = np.ones(len(t), dtype=bool)
+        for j, o in enumerate(m["objects"]):
+            if int(t[j, 0]) == tube:
+                keep[j] = keep_tube(o, m)
+        others = t[~keep]
+        kept_dets = []
+        for det in dets:
+            if det[0] == tube and len(others):
+                ious = common.box_iou(det[2][None], others[:, 1:])[0]
+                if ious.max() >= 0.5:
+                    continue
+            kept_dets.append(det)
+        dets_b.append(kept_dets)
+        tgts_b.append(t[keep])
+        truths += int((t[keep][:, 0] == tube).sum())
+    if not truths:
+        return None
+    r = common.evaluate(dets_b, tgts_b, names, threshold)
+    return {
+        "tube_ap50": r["per_class"][names[tube]]["ap50"],
+        "tubes": truths,
+        "recall": r["per_class"][names[tube]]["recall"],
+    }
+
+
 def band_metrics(detections, targets, metas, names, threshold):
-    """mAP@0.5 per tilt band (whole images) and the tube class's AP per bore band (tubes of
-    other bores ignored: their truths dropped, and the detections that hit them)."""
-    tilt, bore = {}, {}
+    """mAP@0.5 per tilt band (whole images), and the tube class's AP per bore band and per band
+    of the end face's share in view (a bottle in front)."""
+    tilt, bore, visible = {}, {}, {}
     tube = names.index("tube") if "tube" in names else 0
     for i, band in enumerate(TILT_BANDS):
         idx = [
@@ -50,35 +94,22 @@ def band_metrics(detections, targets, metas, names, threshold):
                 "bottle_as_part": r["bottle_as_part"],
             }
     for i, band in enumerate(BORE_BANDS_MM):
-        dets_b, tgts_b, truths = [], [], 0
-        for dets, t, m in zip(detections, targets, metas):
-            if not m:
-                continue
-            objects = m["objects"]
-            keep = np.ones(len(t), dtype=bool)
-            for j, o in enumerate(objects):
-                if int(t[j, 0]) == tube:
-                    d = 2.0 * o["bore"]["radius_mm"]
-                    keep[j] = in_band(d, band, i == len(BORE_BANDS_MM) - 1)
-            others = t[~keep]
-            kept_dets = []
-            for det in dets:
-                if det[0] == tube and len(others):
-                    ious = common.box_iou(det[2][None], others[:, 1:])[0]
-                    if ious.max() >= 0.5:
-                        continue
-                kept_dets.append(det)
-            dets_b.append(kept_dets)
-            tgts_b.append(t[keep])
-            truths += int((t[keep][:, 0] == tube).sum())
-        if truths:
-            r = common.evaluate(dets_b, tgts_b, names, threshold)
-            bore[f"{band[0]:g}-{band[1]:g}"] = {
-                "tube_ap50": r["per_class"][names[tube]]["ap50"],
-                "tubes": truths,
-                "recall": r["per_class"][names[tube]]["recall"],
-            }
-    return tilt, bore
+        last = i == len(BORE_BANDS_MM) - 1
+        r = tube_subset(
+            detections, targets, metas, tube, names, threshold,
+            lambda o, m, band=band, last=last: in_band(2.0 * o["bore"]["radius_mm"], band, last),
+        )
+        if r:
+            bore[f"{band[0]:g}-{band[1]:g}"] = r
+    for i, band in enumerate(VISIBLE_BANDS):
+        last = i == len(VISIBLE_BANDS) - 1
+        r = tube_subset(
+            detections, targets, metas, tube, names, threshold,
+            lambda o, m, band=band, last=last: in_band(face_visible(o, m), band, last),
+        )
+        if r:
+            visible[f"{band[0]:g}-{band[1]:g}"] = r
+    return tilt, bore, visible
 
 
 def main(argv):
@@ -116,9 +147,12 @@ def main(argv):
         sets.append({"dir": os.path.basename(os.path.normpath(d)), "images": n})
     metrics = common.evaluate(detections, targets, names, card["score_threshold"])
     if any(metas):
-        tilt, bore = band_metrics(detections, targets, metas, names, card["score_threshold"])
+        tilt, bore, visible = band_metrics(
+            detections, targets, metas, names, card["score_threshold"]
+        )
         metrics["per_tilt_band_deg"] = tilt
         metrics["per_bore_band_mm"] = bore
+        metrics["per_face_visible_band"] = visible
     metrics["sets"] = sets
     metrics["images"] = len(targets)
     metrics["score_threshold"] = card["score_threshold"]
@@ -128,6 +162,8 @@ def main(argv):
         print(f"tilt {band:>6} deg: mAP@0.5 {m['map50']:.4f} over {m['images']} images")
     for band, m in metrics.get("per_bore_band_mm", {}).items():
         print(f"bore {band:>6} mm: tube AP50 {m['tube_ap50']:.4f}, recall {m['recall']:.4f}, {m['tubes']} tubes")
+    for band, m in metrics.get("per_face_visible_band", {}).items():
+        print(f"face in view {band:>7}: tube AP50 {m['tube_ap50']:.4f}, recall {m['recall']:.4f}, {m['tubes']} tubes")
     print(f"{'class':<10} {'AP50':>6} {'P':>6} {'R':>6} {'truths':>6}")
     for name, m in metrics["per_class"].items():
         print(

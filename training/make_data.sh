@@ -4,10 +4,11 @@
 # (tilt 0-35 degrees in any direction, 0.35-1.2 m from the pick station, any roll, field of view
 # 35-80 degrees) and one to three tubes over the tube family (bores 8-90 mm, outer/bore 1.15-3,
 # heights 30-120 mm, steel finishes) in the cell of one of two scenarios, with that scenario's
-# bottles as the foreign objects: the paper's (scenarios/paper_50.toml) or the second
+# bottles as the foreign objects (in half of the images one is set down between a tube and the
+# camera, hiding up to half of its end face; src/render/family_occlusion.rs): the paper's (scenarios/paper_50.toml) or the second
 # catalogue's (scenarios/suite/catalogue_b.toml). Two classes: `tube` and `foreign`. The label
 # metadata (labels/SPLIT/STEM.json) records each image's camera and tubes, so evaluate.py bands by
-# tilt and bore. The "harsh" sets add a [sensor] section with strong noise, stains, dirt and badly
+# tilt, bore and the share of the end face in view. The "harsh" sets add a [sensor] section with strong noise, stains, dirt and badly
 # balanced light. Training seeds and held-out seeds are disjoint by construction:
 #
 #   train:    seed 7401 paper_50, 2200 images, default sensor realism

@@ -13,6 +13,9 @@ use std::sync::Arc;
 use nalgebra::{Isometry3, Point3, Vector3};
 use serde::Serialize;
 
+use super::family_occlusion::{
+    BeltStrip, MIN_FACE_VISIBLE, OCCLUDED_SHOT_SHARE, TubeFace, stage_occlusion, visible_shares,
+};
 use super::material::Material;
 use super::mesh::Mesh;
 use super::scene::{ObjectKind, Scene, SceneObject};
@@ -85,6 +88,8 @@ pub struct TubeDraw {
     pub finish_albedo: f32,
     /// Where it stands (its centre), m.
     pub position_m: [f64; 3],
+    /// Share of its end face the camera sees past the bottles (at least [`MIN_FACE_VISIBLE`]).
+    pub face_visible: f64,
 }
 
 /// A staged family shot and what was drawn for it.
@@ -389,7 +394,42 @@ pub fn family_shot(
             height_mm: height,
             finish_albedo: face.albedo[1],
             position_m: position,
+            face_visible: 1.0,
         });
+    }
+    // Some shots move a bottle in front of a tube; a tube the bottles hide past labelling is
+    // left out of every shot.
+    if let Some(eye) = scenario.camera.position_m.map(Point3::from) {
+        let faces: Vec<TubeFace> = tubes
+            .iter()
+            .map(|t| TubeFace {
+                centre: [t.position_m[0], t.position_m[1]],
+                top_z: belt_top + t.height_mm / 1e3,
+                outer_m: t.outer_mm / 2e3,
+                bore_m: t.bore_mm / 2e3,
+            })
+            .collect();
+        let strip = BeltStrip {
+            centre_y: base.conveyor.belt_center_m[1],
+            half_width: half_belt,
+        };
+        if rng.uniform() < OCCLUDED_SHOT_SHARE {
+            stage_occlusion(&mut scene, &faces, &eye, &strip, &mut rng);
+        }
+        let shares = visible_shares(&scene, &faces, &eye);
+        for (tube, share) in tubes.iter_mut().zip(&shares) {
+            tube.face_visible = *share;
+        }
+        let hidden_at = |p: &[f64; 3]| {
+            tubes
+                .iter()
+                .any(|t| t.face_visible < MIN_FACE_VISIBLE && t.position_m == *p)
+        };
+        scene.objects.retain(|o| {
+            let t = o.world_from_object.translation.vector;
+            !matches!(o.kind, ObjectKind::Part(_)) || !hidden_at(&[t.x, t.y, t.z])
+        });
+        tubes.retain(|t| t.face_visible >= MIN_FACE_VISIBLE);
     }
     // A bottle the robot hides is left out of the shot (its label would be wrong).
     scene.objects.retain(|o| {
@@ -411,6 +451,60 @@ pub fn family_shot(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Over 120 shots of each shipped cell: some tubes are partly hidden by a bottle moved in
+    /// front of them, none labelled is hidden past [`MIN_FACE_VISIBLE`], and every bottle stands
+    /// clear of every tube.
+    #[test]
+    fn family_shots_hide_some_tubes_partly_and_none_past_labelling() {
+        for (file, seed) in [
+            ("scenarios/paper_50.toml", 5),
+            ("scenarios/suite/catalogue_b.toml", 6),
+        ] {
+            let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(file);
+            let mut scenario = Scenario::load(&path).expect("scenario");
+            scenario.seed = seed;
+            scenario.camera.resolution_px = [640, 480];
+            let rig = CameraRig::from_scenario(&scenario).expect("rig");
+            let model = CellModel::with_urdf(scenario, None).expect("cell model");
+            let model = family_model(&model).expect("family model");
+            let (mut tubes, mut partly) = (0, 0);
+            for index in 0..120 {
+                let family = family_shot(&model, &rig, index).expect("shot");
+                let labelled = family.truth().iter().filter(|t| t.class_id == 0).count();
+                assert_eq!(labelled, family.tubes.len(), "{file} shot {index}");
+                for tube in &family.tubes {
+                    tubes += 1;
+                    assert!(
+                        tube.face_visible >= MIN_FACE_VISIBLE,
+                        "{file} {index}: {tube:?}"
+                    );
+                    if tube.face_visible < 0.9 {
+                        partly += 1;
+                    }
+                    let radius = tube.outer_mm / 2e3;
+                    for bottle in &family.shot.scene.objects {
+                        if bottle.kind != ObjectKind::Bottle {
+                            continue;
+                        }
+                        let nearest = bottle
+                            .world_points()
+                            .map(|p| (p.x - tube.position_m[0]).hypot(p.y - tube.position_m[1]))
+                            .fold(f64::MAX, f64::min);
+                        assert!(
+                            nearest > radius,
+                            "{file} {index}: a bottle through {tube:?}"
+                        );
+                    }
+                }
+            }
+            eprintln!("{file}: {partly} of {tubes} tubes partly hidden");
+            assert!(
+                partly * 20 >= tubes,
+                "{file}: {partly} of {tubes} tubes partly hidden"
+            );
+        }
+    }
 
     #[test]
     fn family_cameras_lie_inside_the_envelope() {

@@ -23,6 +23,7 @@ pub mod dataset;
 pub mod error;
 mod exposure;
 pub mod family;
+pub mod family_occlusion;
 mod gpu_scene;
 pub mod material;
 pub mod mesh;
