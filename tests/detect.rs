@@ -243,6 +243,77 @@ fn shipped_detector_finds_family_tubes_over_the_camera_envelope() {
     assert_accurate(&tally, 120, 0.95, 1);
 }
 
+/// Tubes partly hidden by a bottle standing or lying between them and the camera (half to nine
+/// tenths of the end face in view), as a tilted camera sees a part with a bottle beside it: family
+/// shots of seeds 4246 (the paper's cell) and 4247 (the second catalogue's, harsh), the first 24
+/// of each that hold such a tube. At least 65 % of those tubes are found as tubes at IoU >= 0.5:
+/// the shipped model finds 35 of 48, the one trained before such shots were drawn 19 of 48 (and
+/// fails this). The goal is all of them; held out, 70 % of the partly hidden tubes are found.
+#[test]
+fn shipped_detector_finds_tubes_partly_hidden_by_a_bottle() {
+    let mut detector = shipped();
+    let (mut partly, mut found) = (0usize, 0usize);
+    let mut misses = Vec::new();
+    for (name, seed, sensor) in [
+        ("paper_50.toml", 4246, None),
+        ("suite/catalogue_b.toml", 4247, Some(harsh())),
+    ] {
+        let mut scenario = scenario_at(name, seed);
+        if let Some(sensor) = sensor {
+            scenario.sensor = sensor;
+        }
+        let rig = CameraRig::from_scenario(&scenario).expect("camera");
+        let mut renderer = common::renderer(&scenario);
+        let model = CellModel::with_urdf(scenario.clone(), None).expect("cell model");
+        let model = family_model(&model).expect("family cell model");
+        let mut shots = 0;
+        for index in 0..600 {
+            if shots == 24 {
+                break;
+            }
+            let family = family_shot(&model, &rig, index).expect("family shot");
+            let hidden: Vec<_> = family
+                .tubes
+                .iter()
+                .filter(|t| t.face_visible < 0.9)
+                .collect();
+            if hidden.is_empty() {
+                continue;
+            }
+            shots += 1;
+            let image = family.shot.render(&mut renderer).expect("render");
+            let detections = detector.detect(&image).expect("detect");
+            let truths = family.truth();
+            for tube in hidden {
+                let Some(truth) = truths
+                    .iter()
+                    .find(|t| t.class_id == 0 && t.position_m == tube.position_m)
+                else {
+                    panic!("{name} shot {index}: no label for {tube:?}");
+                };
+                partly += 1;
+                let hit = detections
+                    .iter()
+                    .any(|d| d.class_name == "tube" && iou(d.box_px, edges(truth)) >= 0.5);
+                if hit {
+                    found += 1;
+                } else {
+                    misses.push(format!(
+                        "{name} shot {index}: {tube:?} missed; got {detections:?}"
+                    ));
+                }
+            }
+        }
+        assert_eq!(shots, 24, "{name}: too few shots with a partly hidden tube");
+    }
+    let recall = found as f64 / partly as f64;
+    eprintln!("partly hidden tubes found: {found} of {partly}");
+    assert!(
+        recall >= 0.65,
+        "recall {recall:.3} ({found} of {partly}): {misses:#?}"
+    );
+}
+
 /// Detection is deterministic: the same image twice gives the same bytes, and the network built
 /// into the binary gives the same as the shipped file.
 #[test]
