@@ -18,7 +18,7 @@ pub const OCCLUDED_SHOT_SHARE: f64 = 0.5;
 pub const MIN_FACE_VISIBLE: f64 = 0.5;
 /// Most share of its end face a tube shows for the bottle moved in front of it to count as
 /// hiding it.
-const MAX_OCCLUDED_VISIBLE: f64 = 0.9;
+pub const MAX_OCCLUDED_VISIBLE: f64 = 0.9;
 /// Points sampled on each of an end face's three circles (outer rim, middle, bore rim).
 const FACE_SAMPLES: usize = 24;
 /// Least horizontal gap between a moved bottle and any tube, m.
@@ -42,7 +42,9 @@ pub struct TubeFace {
 /// The belt's strip that bottles must stay on: its centre line's y and half width, m.
 #[derive(Debug, Clone, Copy)]
 pub struct BeltStrip {
+    /// The belt's centre line, world y, m.
     pub centre_y: f64,
+    /// Half the belt's width, m.
     pub half_width: f64,
 }
 
