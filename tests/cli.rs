@@ -136,3 +136,62 @@ fn bench_reports_each_stage_and_the_cost_of_a_simulated_second() {
     assert!(sim_s > 1.0 && total_s > 0.0, "{sim_s} {total_s}");
     assert!((per_sim_s - total_s / sim_s).abs() < 1e-9, "{per_sim_s}");
 }
+
+/// `twincell dataset --family --occlude` sets bottles in front of tubes: of 30 shots of the
+/// paper's cell, some hold a tube with 0.5-0.9 of its end face in view (recorded beside its
+/// label), none one hidden past half; without `--occlude` the same shots hold none partly hidden
+/// by a moved bottle. `--occlude` without `--family` is refused.
+#[test]
+fn family_datasets_set_bottles_in_front_of_tubes_on_request() {
+    let scenario = common::scenario_path("paper_50.toml");
+    let scenario = scenario.to_str().expect("utf-8 path");
+    let mut partly = [0usize; 2];
+    for (k, occlude) in [false, true].into_iter().enumerate() {
+        let out = common::out_dir("cli", if occlude { "occluded" } else { "clear" });
+        let out = out.to_str().expect("utf-8 path");
+        let mut args = vec![
+            "dataset",
+            scenario,
+            "--count",
+            "30",
+            "--out",
+            out,
+            "--resolution",
+            "640",
+            "480",
+            "--family",
+        ];
+        if occlude {
+            args.push("--occlude");
+        }
+        let (code, _, stderr) = twincell(&args);
+        assert_eq!(code, 0, "{stderr}");
+        for split in ["train", "val"] {
+            let dir = std::path::Path::new(out).join("labels").join(split);
+            for entry in std::fs::read_dir(&dir).expect("labels") {
+                let path = entry.expect("entry").path();
+                if path.extension().is_none_or(|e| e != "json") {
+                    continue;
+                }
+                let meta: Value =
+                    serde_json::from_str(&std::fs::read_to_string(&path).expect("json"))
+                        .expect("label metadata");
+                for tube in meta["tubes"].as_array().expect("tubes") {
+                    let seen = tube["face_visible"].as_f64().expect("face_visible");
+                    if occlude {
+                        assert!(seen >= 0.5, "{}: {tube}", path.display());
+                    }
+                    partly[k] += usize::from(seen < 0.9);
+                }
+            }
+        }
+    }
+    assert!(
+        partly[1] >= 2,
+        "partly hidden tubes with --occlude: {partly:?}"
+    );
+    assert!(partly[1] > partly[0], "{partly:?}");
+    let (code, _, stderr) = twincell(&["dataset", scenario, "--out", "/tmp/x", "--occlude"]);
+    assert_eq!(code, 2, "{stderr}");
+    assert!(stderr.contains("--family"), "{stderr}");
+}

@@ -48,6 +48,8 @@ DATA_ENVELOPE = {
         "max_roundness_mm": 0.3,
         "per_image": [1, 3],
         "smallest_face_px": "outer diameter at least 20 px of the 640 px frame",
+        "face_in_view": "at least half of the end face; in half of the images a bottle is set "
+        "down between a tube and the camera, leaving 0.5-0.9 of its end face in view",
     },
     "foreign": "the scenarios' bottles, 1-3 a cell, standing or lying",
     "cells": ["scenarios/paper_50.toml", "scenarios/suite/catalogue_b.toml"],

@@ -4,8 +4,9 @@
 # (tilt 0-35 degrees in any direction, 0.35-1.2 m from the pick station, any roll, field of view
 # 35-80 degrees) and one to three tubes over the tube family (bores 8-90 mm, outer/bore 1.15-3,
 # heights 30-120 mm, steel finishes) in the cell of one of two scenarios, with that scenario's
-# bottles as the foreign objects (in half of the images one is set down between a tube and the
-# camera, hiding up to half of its end face; src/render/family_occlusion.rs): the paper's (scenarios/paper_50.toml) or the second
+# bottles as the foreign objects. With OCCLUDE=1 (`twincell dataset --family --occlude`), in half
+# of the images one bottle is set down between a tube and the camera, hiding up to half of its end
+# face (src/render/family_occlusion.rs); the shipped model was trained without it: the paper's (scenarios/paper_50.toml) or the second
 # catalogue's (scenarios/suite/catalogue_b.toml). Two classes: `tube` and `foreign`. The label
 # metadata (labels/SPLIT/STEM.json) records each image's camera and tubes, so evaluate.py bands by
 # tilt, bore and the share of the end face in view. The "harsh" sets add a [sensor] section with strong noise, stains, dirt and badly
@@ -19,7 +20,8 @@
 #             seed 9111 catalogue_b, 150 images, default; seed 9112 catalogue_b, 150, harsh
 #   (tests/detect.rs renders seeds 4242 and 4243.)
 #
-# Usage: training/make_data.sh OUT_DIR [train|heldout|all]   (PARALLEL=1 renders the sets at once)
+# Usage: training/make_data.sh OUT_DIR [train|heldout|all]   (PARALLEL=1 renders the sets at once;
+#        OCCLUDE=1 sets bottles in front of tubes; use a separate OUT_DIR for such sets)
 # Needs the release binary (cargo build --release --bin twincell) or TWINCELL=path.
 set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
@@ -59,7 +61,10 @@ make_set() {
     printf 'extends = "%s"\nseed = %s\n' "$base" "$seed" > "$scenario"
     [ "$harsh" = 1 ] && printf '%s' "$HARSH" >> "$scenario"
     rm -rf "${out:?}/$name"
-    "$bin" dataset "$scenario" --count "$count" --out "$out/$name" --resolution 640 480 --family
+    local occlude=()
+    [ "${OCCLUDE:-0}" = 1 ] && occlude=(--occlude)
+    "$bin" dataset "$scenario" --count "$count" --out "$out/$name" --resolution 640 480 --family \
+        "${occlude[@]}"
 }
 
 pids=""

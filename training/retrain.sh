@@ -8,7 +8,8 @@
 # Environment: DATA (default ~/.cache/twincell/detdata), TWINCELL (the release binary; default
 # $CARGO_TARGET_DIR/release/twincell or target/release/twincell), TWINCELL_VENV, PYTHON (a
 # Python with torch, onnx and onnxruntime instead of the venv), DEVICE, THREADS, DEADLINE_S
-# (stop training after the epoch that ends past this many seconds), PARALLEL (make_data.sh).
+# (stop training after the epoch that ends past this many seconds), PARALLEL and OCCLUDE
+# (make_data.sh; with OCCLUDE=1 give another DATA, the sets keep their names).
 set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
 root="$(dirname "$here")"

@@ -58,6 +58,10 @@ pub struct DatasetArgs {
     /// scenario's cell, bottles and sensor realism.
     #[arg(long)]
     family: bool,
+    /// With `--family`: in half of the images, set a bottle down between a tube and the camera
+    /// (0.5-0.9 of its end face left in view), and leave out any tube less than half in view.
+    #[arg(long, requires = "family")]
+    occlude: bool,
 }
 
 #[derive(Debug, Serialize)]
@@ -144,7 +148,13 @@ pub fn run_dataset(args: &DatasetArgs) -> Result<ExitCode> {
     let mut renderer = renderer_for(&scenario)?;
     let start = Instant::now();
     let summary = if args.family {
-        dataset::export_family(&model, &rig, &mut renderer, args.count, &args.out)?
+        dataset::export_family(
+            &model,
+            &rig,
+            &mut renderer,
+            (args.count, args.occlude),
+            &args.out,
+        )?
     } else {
         dataset::export(&model, &rig, &mut renderer, args.count, &args.out)?
     };

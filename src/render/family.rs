@@ -88,7 +88,8 @@ pub struct TubeDraw {
     pub finish_albedo: f32,
     /// Where it stands (its centre), m.
     pub position_m: [f64; 3],
-    /// Share of its end face the camera sees past the bottles (at least [`MIN_FACE_VISIBLE`]).
+    /// Share of its end face the camera sees past the bottles (at least [`MIN_FACE_VISIBLE`] in
+    /// shots staged with occlusion).
     pub face_visible: f64,
 }
 
@@ -264,11 +265,24 @@ pub fn family_model(model: &CellModel) -> Result<CellModel, CellError> {
 }
 
 /// Stages family shot `index` of `model`'s scenario (a [`family_model`]) at `base_rig`'s
-/// resolution.
+/// resolution, without bottles moved in front of tubes (the data the shipped detector was
+/// trained on).
 pub fn family_shot(
     model: &CellModel,
     base_rig: &CameraRig,
     index: u64,
+) -> Result<FamilyShot, ShotError> {
+    family_shot_with(model, base_rig, index, false)
+}
+
+/// As [`family_shot`]; with `occlude`, a share ([`OCCLUDED_SHOT_SHARE`]) of the shots also set
+/// a bottle down in front of a tube, and every shot leaves out the tubes whose end face is less
+/// than [`MIN_FACE_VISIBLE`] in view (`twincell dataset --family --occlude`).
+pub fn family_shot_with(
+    model: &CellModel,
+    base_rig: &CameraRig,
+    index: u64,
+    occlude: bool,
 ) -> Result<FamilyShot, ShotError> {
     let base = model.scenario();
     let mut rng = SimRng::derive(base.seed ^ FAMILY_SALT, index);
@@ -397,8 +411,8 @@ pub fn family_shot(
             face_visible: 1.0,
         });
     }
-    // Some shots move a bottle in front of a tube; a tube the bottles hide past labelling is
-    // left out of every shot.
+    // Each tube's share of its end face in view is recorded. With `occlude`, some shots move a
+    // bottle in front of a tube, and a tube the bottles hide past labelling is left out.
     if let Some(eye) = scenario.camera.position_m.map(Point3::from) {
         let faces: Vec<TubeFace> = tubes
             .iter()
@@ -413,7 +427,7 @@ pub fn family_shot(
             centre_y: base.conveyor.belt_center_m[1],
             half_width: half_belt,
         };
-        if rng.uniform() < OCCLUDED_SHOT_SHARE {
+        if occlude && rng.uniform() < OCCLUDED_SHOT_SHARE {
             stage_occlusion(&mut scene, &faces, &eye, &strip, &mut rng);
         }
         let shares = visible_shares(&scene, &faces, &eye);
@@ -421,15 +435,16 @@ pub fn family_shot(
             tube.face_visible = *share;
         }
         let hidden_at = |p: &[f64; 3]| {
-            tubes
-                .iter()
-                .any(|t| t.face_visible < MIN_FACE_VISIBLE && t.position_m == *p)
+            occlude
+                && tubes
+                    .iter()
+                    .any(|t| t.face_visible < MIN_FACE_VISIBLE && t.position_m == *p)
         };
         scene.objects.retain(|o| {
             let t = o.world_from_object.translation.vector;
             !matches!(o.kind, ObjectKind::Part(_)) || !hidden_at(&[t.x, t.y, t.z])
         });
-        tubes.retain(|t| t.face_visible >= MIN_FACE_VISIBLE);
+        tubes.retain(|t| !occlude || t.face_visible >= MIN_FACE_VISIBLE);
     }
     // A bottle the robot hides is left out of the shot (its label would be wrong).
     scene.objects.retain(|o| {
@@ -470,7 +485,7 @@ mod tests {
             let model = family_model(&model).expect("family model");
             let (mut tubes, mut partly) = (0, 0);
             for index in 0..120 {
-                let family = family_shot(&model, &rig, index).expect("shot");
+                let family = family_shot_with(&model, &rig, index, true).expect("shot");
                 let labelled = family.truth().iter().filter(|t| t.class_id == 0).count();
                 assert_eq!(labelled, family.tubes.len(), "{file} shot {index}");
                 for tube in &family.tubes {
