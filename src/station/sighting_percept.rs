@@ -5,6 +5,7 @@ use nalgebra::Point3;
 
 use super::camera_percept::Sighting;
 use super::percept::{Percept, bottle_obstacle, part_obstacle};
+use super::silhouette::CutBox;
 use crate::camera::CameraCalibration;
 use crate::scenario::{BottleSection, Catalogue, PartTypeId};
 
@@ -162,16 +163,15 @@ impl Sighting {
 /// The borders of a `frame_px` large frame that `box_px` reaches within
 /// [`BORDER_TOUCH_SHARE`] of (a box cut by the image's edge), as inward unit normals.
 pub(super) fn touched_borders(box_px: &[f64; 4], frame_px: (u32, u32)) -> Vec<[f64; 2]> {
-    let [x0, y0, x1, y1] = *box_px;
-    let (w, h) = (f64::from(frame_px.0), f64::from(frame_px.1));
-    let (mx, my) = (BORDER_TOUCH_SHARE * w, BORDER_TOUCH_SHARE * h);
-    [
-        (x0 <= mx, [1.0, 0.0]),
-        (y0 <= my, [0.0, 1.0]),
-        (x1 >= w - mx, [-1.0, 0.0]),
-        (y1 >= h - my, [0.0, -1.0]),
-    ]
-    .into_iter()
-    .filter_map(|(touches, inward)| touches.then_some(inward))
-    .collect()
+    let frame = (f64::from(frame_px.0), f64::from(frame_px.1));
+    let Some(cut) = CutBox::of(box_px, frame, BORDER_TOUCH_SHARE) else {
+        return Vec::new();
+    };
+    // Left, top, right, bottom, as `CutBox::cut` orders them.
+    let inward = [[1.0, 0.0], [0.0, 1.0], [-1.0, 0.0], [0.0, -1.0]];
+    cut.cut
+        .into_iter()
+        .zip(inward)
+        .filter_map(|(touches, inward)| touches.then_some(inward))
+        .collect()
 }
