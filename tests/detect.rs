@@ -2,7 +2,8 @@
 //! (not against recorded outputs). It finds tube end faces (class `tube`) and foreign objects
 //! (`foreign`): on the two catalogues' own pick-station shots (seeds 4242, the paper's, and 4243,
 //! scenarios/suite/catalogue_b.toml) and on family shots drawn over the whole tube family and
-//! camera envelope (seeds 4244 and 4245). No training or held-out set uses these seeds (see
+//! camera envelope (seeds 4244 and 4245; with bottles set in front of tubes, 4246 and 4247). No
+//! training or held-out set uses these seeds (see
 //! training/make_data.sh). Renders on whatever adapter wgpu finds (the software one without a
 //! GPU) and fails, naming the problem, when there is none.
 
@@ -10,7 +11,7 @@ mod common;
 
 use twincell::cell::CellModel;
 use twincell::detect::{Detection, Detector, DetectorModel};
-use twincell::render::family::{family_model, family_shot};
+use twincell::render::family::{family_model, family_shot_with};
 use twincell::render::{CameraRig, ObjectTruth, Renderer, RendererOptions, Shot};
 use twincell::scenario::{Scenario, SensorSection};
 
@@ -195,17 +196,18 @@ fn shipped_detector_finds_the_second_catalogue() {
     assert_accurate(&tally, 60, 0.95, 0);
 }
 
-/// Family shots (`twincell dataset --family`): 40 images of each sensor realism, each with its
-/// own camera drawn over the whole envelope (tilt 0-35 degrees in any direction, 0.35-1.2 m,
-/// any roll, 35-80 degrees of field of view) and its own tubes over the whole family (bores
-/// 8-90 mm, outer/bore 1.15-3, heights 30-120 mm, steel finishes): recall and precision of at
-/// least 0.95, at most one bottle as a tube, and the tilts drawn reach past 30 degrees.
-#[test]
-fn shipped_detector_finds_family_tubes_over_the_camera_envelope() {
+/// Family shots of the paper's cell, `per_seed` a seed, one seed per sensor (`None`: the
+/// scenario's own), staged with bottles in front of tubes when `occlude`: the tally over every
+/// object, the tally over the tubes less than 0.9 in view alone, and the steepest tilt drawn.
+fn tally_family(
+    seeds: [(u64, Option<SensorSection>); 2],
+    per_seed: u64,
+    occlude: bool,
+) -> (Tally, Tally, f64) {
     let mut detector = shipped();
-    let mut tally = Tally::default();
+    let (mut tally, mut hidden) = (Tally::default(), Tally::default());
     let mut steepest: f64 = 0.0;
-    for (seed, sensor) in [(4244, None), (4245, Some(harsh()))] {
+    for (seed, sensor) in seeds {
         let mut scenario = scenario_at("paper_50.toml", seed);
         if let Some(sensor) = sensor {
             scenario.sensor = sensor;
@@ -217,8 +219,8 @@ fn shipped_detector_finds_family_tubes_over_the_camera_envelope() {
         let mut renderer = common::renderer(&scenario);
         let model = CellModel::with_urdf(scenario.clone(), None).expect("cell model");
         let model = family_model(&model).expect("family cell model");
-        for index in 0..40 {
-            let family = match family_shot(&model, &rig, index) {
+        for index in 0..per_seed {
+            let family = match family_shot_with(&model, &rig, index, occlude) {
                 Ok(s) => s,
                 Err(e) => panic!("shot {index}: {e}"),
             };
@@ -232,15 +234,79 @@ fn shipped_detector_finds_family_tubes_over_the_camera_envelope() {
                 Err(e) => panic!("detect {index}: {e}"),
             };
             let label = format!("seed {seed} image {index} ({:?})", family.camera);
-            tally.add(&label, &family.truth(), &found);
+            let truths = family.truth();
+            tally.add(&label, &truths, &found);
+            // The tubes a bottle hides in part: their truths, matched to the drawn tubes by place.
+            let partly: Vec<ObjectTruth> = truths
+                .iter()
+                .filter(|t| {
+                    t.class == "tube"
+                        && family.tubes.iter().any(|d| {
+                            d.face_visible < 0.9
+                                && (0..3).all(|k| (d.position_m[k] - t.position_m[k]).abs() < 1e-9)
+                        })
+                })
+                .cloned()
+                .collect();
+            hidden.truths += partly.len();
+            for t in &partly {
+                let hit = found
+                    .iter()
+                    .any(|d| d.class_name == "tube" && iou(d.box_px, edges(t)) >= 0.5);
+                if hit {
+                    hidden.found += 1;
+                } else {
+                    hidden
+                        .misses
+                        .push(format!("{label}: tube at {:?}", t.bbox_px));
+                }
+            }
         }
     }
     eprintln!("{tally:?}");
+    eprintln!("partly hidden: {} of {} found", hidden.found, hidden.truths);
+    (tally, hidden, steepest)
+}
+
+/// Family shots (`twincell dataset --family`): 40 images of each sensor realism, each with its
+/// own camera drawn over the whole envelope (tilt 0-35 degrees in any direction, 0.35-1.2 m,
+/// any roll, 35-80 degrees of field of view) and its own tubes over the whole family (bores
+/// 8-90 mm, outer/bore 1.15-3, heights 30-120 mm, steel finishes): recall and precision of at
+/// least 0.95, at most one bottle as a tube, and the tilts drawn reach past 30 degrees.
+#[test]
+fn shipped_detector_finds_family_tubes_over_the_camera_envelope() {
+    let (tally, _, steepest) = tally_family([(4244, None), (4245, Some(harsh()))], 40, false);
     assert!(steepest > 30.0, "steepest tilt drawn {steepest}");
-    // The goal is no bottle as a tube anywhere in the envelope; not met yet at its far, wide
-    // corner (a bottle standing end-on, some 20 px across, 1.2 m from a 75 degree camera): one
-    // in these 80 images, one in the 800 held-out images (assets/models/detector.json).
+    // The goal is no bottle as a tube anywhere in the envelope; not met on the held-out images
+    // (3 of their 579 bottles, assets/models/detector.json), none in these 80 images.
     assert_accurate(&tally, 120, 0.95, 1);
+}
+
+/// Family shots with a bottle set down between a tube and the camera in half of them (`twincell
+/// dataset --family --occlude`; 200 images of seed 4246 with the scenario's sensor, 200 of 4247
+/// harsh): the tubes with 0.5-0.9 of their end face in view are found at least HIDDEN_RECALL of
+/// the time, and over every object recall and precision stay at least 0.9 with at most one
+/// bottle as a tube. Measured: 45 of 55 partly hidden tubes, recall 0.972, precision 0.931, one
+/// bottle as a tube; the detector shipped before the occluded training data (until 6 December
+/// 2026) found 24 of the 55, with 4 bottles as tubes.
+#[test]
+fn shipped_detector_finds_tubes_a_bottle_partly_hides() {
+    const HIDDEN_RECALL: f64 = 0.7;
+    let (tally, hidden, _) = tally_family([(4246, None), (4247, Some(harsh()))], 200, true);
+    assert!(
+        hidden.truths >= 40,
+        "too few partly hidden tubes: {}",
+        hidden.truths
+    );
+    let recall = hidden.found as f64 / hidden.truths as f64;
+    assert!(
+        recall >= HIDDEN_RECALL,
+        "partly hidden tubes: {} of {} found: {:#?}",
+        hidden.found,
+        hidden.truths,
+        hidden.misses
+    );
+    assert_accurate(&tally, 120, 0.9, 1);
 }
 
 /// Detection is deterministic: the same image twice gives the same bytes, and the network built

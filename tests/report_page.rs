@@ -209,9 +209,10 @@ fn load_in_chromium(page: &Path, screenshot: &Path) -> Value {
 
 #[test]
 fn the_page_loads_in_headless_chromium_with_every_plot_and_frame_drawn() {
-    // Five trials of clutter_dense (4-6 bottles, two within 10 mm of the part) on its seed:
-    // sorted parts and failed ones (clutter's first five all sort since bottles with no box are
-    // looked for in the pixels), so the page has decisions, failures and their frames.
+    // Five trials of clutter_dense (4-6 bottles, two within 10 mm of the part) on its seed, with
+    // a held part allowed to creep only 0.1 mm in the jaws (held parts creep 0.09-0.30 mm on the
+    // carry), so that some trials fail whatever the cell's success rate: the page has decisions,
+    // failures and their frames. (Its first five trials all sort since 6 December.)
     let dir = out_dir("browser");
     run(&[
         "run",
@@ -220,6 +221,8 @@ fn the_page_loads_in_headless_chromium_with_every_plot_and_frame_drawn() {
         "5",
         "--jobs",
         "2",
+        "--set",
+        "task.slip_tolerance_m=0.0001",
         "--out",
         path_str(&dir),
     ]);

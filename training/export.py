@@ -51,8 +51,13 @@ DATA_ENVELOPE = {
         "face_in_view": "at least half of the end face; in half of the images a bottle is set "
         "down between a tube and the camera, leaving 0.5-0.9 of its end face in view",
     },
-    "foreign": "the scenarios' bottles, 1-3 a cell, standing or lying",
-    "cells": ["scenarios/paper_50.toml", "scenarios/suite/catalogue_b.toml"],
+    "foreign": "the scenarios' bottles, 1-3 a cell, standing or lying (the clutter cell's: one "
+    "0-10 mm from the first tube, half of them lying)",
+    "cells": [
+        "scenarios/paper_50.toml",
+        "scenarios/suite/catalogue_b.toml",
+        "scenarios/suite/clutter.toml",
+    ],
     "sensor": ["each scenario's own", "harsh (make_data.sh HARSH)"],
 }
 
