@@ -60,6 +60,7 @@ pub struct ArmLink {
 pub struct SimArm {
     joints: [MultibodyJointHandle; DOF],
     fingers: [MultibodyJointHandle; 2],
+    finger_stops_m: [f64; 2],
     efforts: [f32; DOF],
     flange_body: RigidBodyHandle,
     links: Vec<ArmLink>,
@@ -155,6 +156,11 @@ impl SimArm {
             .iter()
             .map(|j| description.joints[j.urdf_joint_index].limit.effort as f32)
             .collect();
+        let lowers_by_name: Vec<f64> = robot
+            .joints
+            .iter()
+            .map(|j| description.joints[j.urdf_joint_index].limit.lower)
+            .collect();
         let physics = &mut world.physics;
         // Self-contacts off: neighbouring links overlap at their joints by design; the planner
         // keeps the arm clear of itself.
@@ -179,8 +185,14 @@ impl SimArm {
             (joints[i], efforts[i]) = find_joint(name)?;
         }
         let mut fingers = [MultibodyJointHandle::invalid(); 2];
+        let mut finger_stops_m = [0.0; 2];
         for (i, name) in FINGER_JOINTS.iter().enumerate() {
             fingers[i] = find_joint(name)?.0;
+            // The joint's lower limit: where the pad stops when the jaws close on nothing.
+            finger_stops_m[i] = joint_names
+                .iter()
+                .position(|n| n == name)
+                .map_or(0.0, |j| lowers_by_name[j].max(0.0));
         }
         couple_fingers(world, &fingers);
         // Every URDF link with a body or a collider, in the file's order; a welded link names
@@ -217,6 +229,7 @@ impl SimArm {
         let arm = Self {
             joints,
             fingers,
+            finger_stops_m,
             efforts,
             flange_body,
             links,
@@ -272,6 +285,12 @@ impl SimArm {
     pub fn finger_positions_m(&self, world: &World) -> [f64; 2] {
         self.fingers
             .map(|handle| f64::from(joint_coord(world, handle, PRISMATIC_COORD).unwrap_or(0.0)))
+    }
+
+    /// The pads' separation with the jaws closed on nothing, m: the sum of the finger joints'
+    /// lower limits in the URDF.
+    pub fn closed_gap_m(&self) -> f64 {
+        self.finger_stops_m.iter().sum()
     }
 
     /// Commands the joint servos to a position and feed-forward velocity.

@@ -346,8 +346,17 @@ fn slimmest_radius_m(model: &CellModel) -> f64 {
         .fold(f64::INFINITY, f64::min)
 }
 
+/// Whether jaws that closed to `gap_m` (the pads' separation) hold a body `2 * radius_m` wide:
+/// they stopped nearer that width than `closed_gap_m`, where they stop on nothing. The rubber
+/// pads give under the squeeze: a held tube reads 4-6 mm narrower over both pads at 60-100 N
+/// (a 74 mm tube at 100 N: 68.0-68.3 mm), so a fixed allowance of 6 mm called a held part
+/// missed; jaws that close on nothing read their stop, 7.8-8.0 mm with the shipped gripper.
+pub(super) fn jaws_hold(gap_m: f64, radius_m: f64, closed_gap_m: f64) -> bool {
+    gap_m > 0.5 * (2.0 * radius_m + closed_gap_m)
+}
+
 /// Closes the jaws with `grip_force_n`: the drive runs its stroke to fully closed, then holds; a
-/// part between the jaws stops them short, which is how the grasp is detected.
+/// part between the jaws stops them short, which is how the grasp is detected ([`jaws_hold`]).
 pub(super) fn grasp(
     model: &CellModel,
     data: &mut CellData,
@@ -364,8 +373,7 @@ pub(super) fn grasp(
     data.settle(model, stroke_s + GRIP_BUILD_S)?;
     data.regrip_if_weak(model, grip_force_n)?;
     let gap = data.cell.arm.finger_positions_m(&data.cell.world);
-    let closed_on_part = gap[0] + gap[1] > 2.0 * part_radius_m - 0.006;
-    if !closed_on_part {
+    if !jaws_hold(gap[0] + gap[1], part_radius_m, data.cell.arm.closed_gap_m()) {
         return fail(
             FailureReason::Slipped,
             format!(
@@ -375,4 +383,20 @@ pub(super) fn grasp(
         );
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::jaws_hold;
+
+    /// Held: a 74 mm tube squeezed to 68.0 mm, a 34 mm one to 29.4 mm. Missed: jaws at their
+    /// 8 mm stop, or a pinch of a wall far narrower than the part.
+    #[test]
+    fn jaws_hold_what_stops_them_nearer_its_width_than_their_stop() {
+        assert!(jaws_hold(0.0680, 0.037, 0.008));
+        assert!(jaws_hold(0.0294, 0.017, 0.008));
+        assert!(!jaws_hold(0.0079, 0.017, 0.008));
+        assert!(!jaws_hold(0.0120, 0.019, 0.008));
+        assert!(!jaws_hold(0.0300, 0.037, 0.008));
+    }
 }

@@ -373,7 +373,7 @@ impl Sorter<'_> {
         tracking.latch_to_grasp_s = data.cell.world.time_s() - item.time_s;
         let radius_m = item.percept.part_outer_radius_m;
         let gap = data.cell.arm.finger_positions_m(&data.cell.world);
-        if gap[0] + gap[1] <= 2.0 * radius_m - 0.006 {
+        if !super::pick_cycle::jaws_hold(gap[0] + gap[1], radius_m, data.cell.arm.closed_gap_m()) {
             return Err(Failure::new(
                 FailureReason::Slipped,
                 format!(
