@@ -257,11 +257,7 @@ fn a_scenario_files_gate_applies_unless_min_success_replaces_it() {
         "--min-success 0 replaces the file's gate"
     );
     assert_eq!(report(&dir)["gate"]["min_success"], 0.0);
-    assert_eq!(
-        run_ok(&base),
-        1,
-        "fast_belt's own gate of 0.8 fails on 0/2"
-    );
+    assert_eq!(run_ok(&base), 1, "fast_belt's own gate of 0.8 fails on 0/2");
     assert_eq!(report(&dir)["gate"]["min_success"], 0.8);
     // paper_50's file sets no gate (every suite file now has one): the batch passes on its
     // exit code alone, and its report carries no gate.
