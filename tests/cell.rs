@@ -244,41 +244,25 @@ fn grasp_holds_by_friction_and_a_weak_grip_lets_the_part_slip() {
     );
 }
 
-/// Wide tubes squeezed hard: the rubber pads give a few millimetres under the grip (a 74 mm tube
-/// at 100 N reads 68 mm between the pads), and a held part must not be called missed. Five types
-/// over the outer diameters the gripper takes past the paper's (56-76 mm, walls 6-13 mm) and
-/// grip forces 60-100 N, 40 trials in oracle mode: every part is held, carried and sorted. With a
-/// fixed 6 mm allowance under the part's width, 2 of these 40 grasps (a 62 mm tube read as
-/// 56.0 mm) were called "nothing between them"; jaws that close on nothing stop at the fingers'
-/// limits (8 mm).
-#[test]
-fn wide_tubes_squeezed_by_the_pads_are_held_not_called_missed() {
-    use twincell::batch::{Outcome, Perception, TrialRunner, trial_seed};
-    use twincell::task::CellTrialRunner;
-    let dir = out_dir("cell", "wide_tubes");
+/// `types` (name, bore, outer, height, grip force per jaw) on paper_50's cell with `bins` (name,
+/// floor centre, accepted types) and a reject bin, as a scenario file in `dir`.
+fn catalogue_scenario(
+    dir: &Path,
+    name: &str,
+    types: &[(&str, f64, f64, f64, f64)],
+    bins: &[(&str, &str, &str)],
+) -> PathBuf {
     let base = scenario_path("paper_50.toml");
     let mut text = format!(
-        "extends = {:?}\nname = \"wide_tubes\"\nseed = 5151\n\n",
+        "extends = {:?}\nname = \"{name}\"\nseed = 5151\n\n",
         base.display().to_string()
     );
-    let types = [
-        ("w44", 44.0, 56.0, 100.0, 60.0),
-        ("w50", 50.0, 62.0, 80.0, 100.0),
-        ("w56", 56.0, 70.0, 70.0, 80.0),
-        ("w60", 60.0, 74.0, 90.0, 100.0),
-        ("w63", 63.0, 76.0, 60.0, 100.0),
-    ];
     for (name, bore, outer, height, grip) in types {
         text.push_str(&format!(
             "[[part_types]]\nname = \"{name}\"\nbore_diameter_mm = {bore:.1}\n\
              outer_diameter_mm = {outer:.1}\nheight_mm = {height:.1}\ngrip_force_n = {grip:.1}\n\n"
         ));
     }
-    let bins = [
-        ("small", "[0.42, 0.24, 0.50]", "\"w44\", \"w50\""),
-        ("mid", "[0.08, 0.50, 0.50]", "\"w56\""),
-        ("wide", "[-0.30, 0.42, 0.50]", "\"w60\", \"w63\""),
-    ];
     for (name, centre, accepts) in bins {
         text.push_str(&format!(
             "[[bins]]\nname = \"{name}\"\nfloor_center_m = {centre}\nsize_m = [0.20, 0.20]\n\
@@ -289,22 +273,68 @@ fn wide_tubes_squeezed_by_the_pads_are_held_not_called_missed() {
         "[[bins]]\nname = \"reject\"\nfloor_center_m = [-0.50, 0.02, 0.50]\n\
          size_m = [0.20, 0.20]\nreject = true\n",
     );
-    let path = dir.join("wide_tubes.toml");
+    let path = dir.join(format!("{name}.toml"));
     std::fs::write(&path, text).expect("scenario written");
-    let scenario = match Scenario::load(&path) {
-        Ok(s) => s,
-        Err(e) => panic!("{e}"),
-    };
-    let master = scenario.seed;
-    let runner = CellTrialRunner::new(scenario, &path, Perception::Oracle).expect("runner builds");
-    let mut failed = Vec::new();
-    for trial in 0..40 {
-        let record = runner.run_trial(trial, trial_seed(master, trial));
-        if record.outcome != Outcome::Success {
-            failed.push((trial, record.failure, record.detail));
-        }
+    path
+}
+
+/// Tubes squeezed hard, wide and narrow: the rubber pads give a few millimetres under the grip
+/// (a 74 mm tube at 100 N reads 68 mm between the pads, a 14 mm one at 60 N 9.2-10 mm), and a
+/// held part must not be called missed. Five wide types (56-76 mm outer, walls 6-13 mm, 60-100 N)
+/// and three narrow ones (14-22 mm, 60-100 N), 40 trials each in oracle mode: every part is
+/// held, carried and sorted. With a fixed 6 mm allowance under the part's width 2 of the 40 wide
+/// grasps (a 62 mm tube read as 56.0 mm) were called "nothing between them"; with a rule half
+/// way between the jaws' 8 mm stop and the width, 13 of the 40 narrow ones.
+#[test]
+fn tubes_squeezed_by_the_pads_are_held_not_called_missed() {
+    use twincell::batch::{Outcome, Perception, TrialRunner, trial_seed};
+    use twincell::task::CellTrialRunner;
+    let dir = out_dir("cell", "squeezed_tubes");
+    let wide = catalogue_scenario(
+        &dir,
+        "wide_tubes",
+        &[
+            ("w44", 44.0, 56.0, 100.0, 60.0),
+            ("w50", 50.0, 62.0, 80.0, 100.0),
+            ("w56", 56.0, 70.0, 70.0, 80.0),
+            ("w60", 60.0, 74.0, 90.0, 100.0),
+            ("w63", 63.0, 76.0, 60.0, 100.0),
+        ],
+        &[
+            ("small", "[0.42, 0.24, 0.50]", "\"w44\", \"w50\""),
+            ("mid", "[0.08, 0.50, 0.50]", "\"w56\""),
+            ("wide", "[-0.30, 0.42, 0.50]", "\"w60\", \"w63\""),
+        ],
+    );
+    let narrow = catalogue_scenario(
+        &dir,
+        "narrow_tubes",
+        &[
+            ("n14", 7.0, 14.0, 50.0, 60.0),
+            ("n18", 10.0, 18.0, 45.0, 100.0),
+            ("n22", 13.0, 22.0, 55.0, 80.0),
+        ],
+        &[
+            ("small", "[0.42, 0.24, 0.50]", "\"n14\""),
+            ("mid", "[0.08, 0.50, 0.50]", "\"n18\""),
+            ("wide", "[-0.30, 0.42, 0.50]", "\"n22\""),
+        ],
+    );
+    for path in [wide, narrow] {
+        let scenario = match Scenario::load(&path) {
+            Ok(s) => s,
+            Err(e) => panic!("{e}"),
+        };
+        let master = scenario.seed;
+        let runner =
+            CellTrialRunner::new(scenario, &path, Perception::Oracle).expect("runner builds");
+        let failed: Vec<_> = (0..40)
+            .map(|trial| (trial, runner.run_trial(trial, trial_seed(master, trial))))
+            .filter(|(_, r)| r.outcome != Outcome::Success)
+            .map(|(trial, r)| (trial, r.failure, r.detail))
+            .collect();
+        assert!(failed.is_empty(), "{}: {failed:?}", path.display());
     }
-    assert!(failed.is_empty(), "{failed:?}");
 }
 
 /// The stream scenario shortened to `parts` parts and `bottles` bottles, written to `dir`.

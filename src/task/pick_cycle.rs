@@ -346,13 +346,20 @@ fn slimmest_radius_m(model: &CellModel) -> f64 {
         .fold(f64::INFINITY, f64::min)
 }
 
+/// How much narrower than a held body the pads may read, over both, m. The rubber pads give
+/// under the squeeze (the solver's soft contacts): a held tube reads 4-6 mm narrower at 60-100 N
+/// (a 74 mm tube at 100 N: 68.0-68.3 mm; a 14 mm one at 60 N: 9.2-10.0 mm).
+const SQUEEZE_ALLOWANCE_M: f64 = 0.010;
+/// How far past their closed stop jaws that hold something must have stopped, m: jaws that close
+/// on nothing read their stop, 7.8-8.0 mm with the shipped gripper's 8.0 mm.
+const STOP_MARGIN_M: f64 = 0.0008;
+
 /// Whether jaws that closed to `gap_m` (the pads' separation) hold a body `2 * radius_m` wide:
-/// they stopped nearer that width than `closed_gap_m`, where they stop on nothing. The rubber
-/// pads give under the squeeze: a held tube reads 4-6 mm narrower over both pads at 60-100 N
-/// (a 74 mm tube at 100 N: 68.0-68.3 mm), so a fixed allowance of 6 mm called a held part
-/// missed; jaws that close on nothing read their stop, 7.8-8.0 mm with the shipped gripper.
+/// they stopped clear of `closed_gap_m`, where they stop on nothing, and no more than the pads'
+/// squeeze short of the body's width. (A fixed allowance of 6 mm called held 62-74 mm tubes
+/// missed; a rule half way between the stop and the width called held 14-18 mm ones missed.)
 pub(super) fn jaws_hold(gap_m: f64, radius_m: f64, closed_gap_m: f64) -> bool {
-    gap_m > 0.5 * (2.0 * radius_m + closed_gap_m)
+    gap_m > closed_gap_m + STOP_MARGIN_M && gap_m > 2.0 * radius_m - SQUEEZE_ALLOWANCE_M
 }
 
 /// Closes the jaws with `grip_force_n`: the drive runs its stroke to fully closed, then holds; a
@@ -389,13 +396,16 @@ pub(super) fn grasp(
 mod tests {
     use super::jaws_hold;
 
-    /// Held: a 74 mm tube squeezed to 68.0 mm, a 34 mm one to 29.4 mm. Missed: jaws at their
-    /// 8 mm stop, or a pinch of a wall far narrower than the part.
+    /// Held: a 74 mm tube squeezed to 68.0 mm, a 34 mm one to 29.4 mm, a 14 mm one to 9.2 mm.
+    /// Missed: jaws at their 8 mm stop, a pinch of a wall far narrower than the part, a part
+    /// too thin to stop the jaws clear of their stop.
     #[test]
-    fn jaws_hold_what_stops_them_nearer_its_width_than_their_stop() {
+    fn jaws_hold_what_stops_them_clear_of_their_stop_and_near_its_width() {
         assert!(jaws_hold(0.0680, 0.037, 0.008));
         assert!(jaws_hold(0.0294, 0.017, 0.008));
+        assert!(jaws_hold(0.0092, 0.007, 0.008));
         assert!(!jaws_hold(0.0079, 0.017, 0.008));
+        assert!(!jaws_hold(0.0080, 0.005, 0.008));
         assert!(!jaws_hold(0.0120, 0.019, 0.008));
         assert!(!jaws_hold(0.0300, 0.037, 0.008));
     }
