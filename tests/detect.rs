@@ -287,8 +287,8 @@ fn shipped_detector_finds_family_tubes_over_the_camera_envelope() {
 /// harsh): the tubes with 0.5-0.9 of their end face in view are found at least HIDDEN_RECALL of
 /// the time, and over every object recall and precision stay at least 0.9 with at most one
 /// bottle as a tube. Measured: 45 of 55 partly hidden tubes, recall 0.972, precision 0.931, one
-/// bottle as a tube; the detector shipped before the occluded training data (until 6 December
-/// 2026) found 24 of the 55, with 4 bottles as tubes.
+/// bottle as a tube; the detector shipped before the occluded training data (until the evening
+/// of 5 December 2026) found 24 of the 55, with 4 bottles as tubes.
 #[test]
 fn shipped_detector_finds_tubes_a_bottle_partly_hides() {
     const HIDDEN_RECALL: f64 = 0.7;

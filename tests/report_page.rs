@@ -212,7 +212,8 @@ fn the_page_loads_in_headless_chromium_with_every_plot_and_frame_drawn() {
     // Five trials of clutter_dense (4-6 bottles, two within 10 mm of the part) on its seed, with
     // a held part allowed to creep only 0.1 mm in the jaws (held parts creep 0.09-0.30 mm on the
     // carry), so that some trials fail whatever the cell's success rate: the page has decisions,
-    // failures and their frames. (Its first five trials all sort since 6 December.)
+    // failures and their frames. (Its first five trials all sort since the evening of 5
+    // December 2026.)
     let dir = out_dir("browser");
     run(&[
         "run",

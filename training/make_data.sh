@@ -9,7 +9,7 @@
 # bottles, standing and lying, among the parts). In half of the images one bottle is set down
 # between a tube and the camera, hiding up to half of its end face (`twincell dataset --family
 # --occlude`, src/render/family_occlusion.rs; OCCLUDE=0 leaves it out, as the detector shipped
-# before 6 December 2026 was trained). Two classes: `tube` and `foreign`. The label
+# before the evening of 5 December 2026 was trained). Two classes: `tube` and `foreign`. The label
 # metadata (labels/SPLIT/STEM.json) records each image's camera and tubes, so evaluate.py bands by
 # tilt, bore and the share of the end face in view. The "harsh" sets add a [sensor] section with strong noise, stains, dirt and badly
 # balanced light. Training seeds and held-out seeds are disjoint by construction:
