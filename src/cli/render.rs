@@ -152,7 +152,8 @@ pub fn run_dataset(args: &DatasetArgs) -> Result<ExitCode> {
             &model,
             &rig,
             &mut renderer,
-            (args.count, args.occlude),
+            args.count,
+            args.occlude,
             &args.out,
         )?
     } else {

@@ -6,7 +6,7 @@
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use super::family::{FAMILY_CLASSES, family_model, family_shot_with};
+use super::family::{FAMILY_CLASSES, family_model, family_shot};
 use super::renderer::Renderer;
 use super::shot::{CameraRig, ObjectTruth, Shot, ShotError};
 use crate::cell::CellModel;
@@ -112,12 +112,13 @@ pub fn export(
 /// shot's camera (tilt, its direction, distance, roll, field of view), its tubes (bore, outer
 /// diameter, height, finish, share of the end face in view) and every labelled object's truth,
 /// so evaluation can band by them. `occlude` sets a bottle down in front of a tube in some shots
-/// ([`super::family::family_shot_with`]).
+/// ([`super::family::family_shot`]).
 pub fn export_family(
     model: &CellModel,
     rig: &CameraRig,
     renderer: &mut Renderer,
-    (count, occlude): (u64, bool),
+    count: u64,
+    occlude: bool,
     out: &Path,
 ) -> Result<DatasetSummary, DatasetError> {
     let model = &family_model(model).map_err(|e| DatasetError::Shot {
@@ -128,7 +129,7 @@ pub fn export_family(
     let names: Vec<String> = FAMILY_CLASSES.iter().map(|c| (*c).to_string()).collect();
     write_set(scenario, rig, &names, count, out, |index| {
         let shot_error = |source: ShotError| DatasetError::Shot { index, source };
-        let family = family_shot_with(model, rig, index, occlude).map_err(shot_error)?;
+        let family = family_shot(model, rig, index, occlude).map_err(shot_error)?;
         let image = family
             .shot
             .render(renderer)

@@ -265,20 +265,11 @@ pub fn family_model(model: &CellModel) -> Result<CellModel, CellError> {
 }
 
 /// Stages family shot `index` of `model`'s scenario (a [`family_model`]) at `base_rig`'s
-/// resolution, without bottles moved in front of tubes (the data the shipped detector was
-/// trained on).
+/// resolution. With `occlude`, a share ([`OCCLUDED_SHOT_SHARE`]) of the shots also set a bottle
+/// down in front of a tube, and every shot leaves out the tubes whose end face is less than
+/// [`MIN_FACE_VISIBLE`] in view (`twincell dataset --family --occlude`); without it, the shots of
+/// the data the detector before 5 December 2026 (evening) was trained on.
 pub fn family_shot(
-    model: &CellModel,
-    base_rig: &CameraRig,
-    index: u64,
-) -> Result<FamilyShot, ShotError> {
-    family_shot_with(model, base_rig, index, false)
-}
-
-/// As [`family_shot`]; with `occlude`, a share ([`OCCLUDED_SHOT_SHARE`]) of the shots also set
-/// a bottle down in front of a tube, and every shot leaves out the tubes whose end face is less
-/// than [`MIN_FACE_VISIBLE`] in view (`twincell dataset --family --occlude`).
-pub fn family_shot_with(
     model: &CellModel,
     base_rig: &CameraRig,
     index: u64,
@@ -485,7 +476,7 @@ mod tests {
             let model = family_model(&model).expect("family model");
             let (mut tubes, mut partly) = (0, 0);
             for index in 0..120 {
-                let family = family_shot_with(&model, &rig, index, true).expect("shot");
+                let family = family_shot(&model, &rig, index, true).expect("shot");
                 let labelled = family.truth().iter().filter(|t| t.class_id == 0).count();
                 assert_eq!(labelled, family.tubes.len(), "{file} shot {index}");
                 for tube in &family.tubes {
