@@ -244,13 +244,13 @@ fn grasp_holds_by_friction_and_a_weak_grip_lets_the_part_slip() {
     );
 }
 
-/// `types` (name, bore, outer, height, grip force per jaw) on paper_50's cell with `bins` (name,
-/// floor centre, accepted types) and a reject bin, as a scenario file in `dir`.
+/// `types` (name, bore, outer, height, grip force per jaw) on paper_50's cell, `groups[k]` the
+/// types paper_50's bin k accepts, with a reject bin, as a scenario file in `dir`.
 fn catalogue_scenario(
     dir: &Path,
     name: &str,
     types: &[(&str, f64, f64, f64, f64)],
-    bins: &[(&str, &str, &str)],
+    groups: [&[&str]; 3],
 ) -> PathBuf {
     let base = scenario_path("paper_50.toml");
     let mut text = format!(
@@ -263,10 +263,15 @@ fn catalogue_scenario(
              outer_diameter_mm = {outer:.1}\nheight_mm = {height:.1}\ngrip_force_n = {grip:.1}\n\n"
         ));
     }
-    for (name, centre, accepts) in bins {
+    let centres = [
+        "[0.42, 0.24, 0.50]",
+        "[0.08, 0.50, 0.50]",
+        "[-0.30, 0.42, 0.50]",
+    ];
+    for (k, (centre, accepts)) in centres.iter().zip(groups).enumerate() {
         text.push_str(&format!(
-            "[[bins]]\nname = \"{name}\"\nfloor_center_m = {centre}\nsize_m = [0.20, 0.20]\n\
-             accepts = [{accepts}]\n\n"
+            "[[bins]]\nname = \"group_{k}\"\nfloor_center_m = {centre}\nsize_m = [0.20, 0.20]\n\
+             accepts = {accepts:?}\n\n"
         ));
     }
     text.push_str(
@@ -300,11 +305,7 @@ fn tubes_squeezed_by_the_pads_are_held_not_called_missed() {
             ("w60", 60.0, 74.0, 90.0, 100.0),
             ("w63", 63.0, 76.0, 60.0, 100.0),
         ],
-        &[
-            ("small", "[0.42, 0.24, 0.50]", "\"w44\", \"w50\""),
-            ("mid", "[0.08, 0.50, 0.50]", "\"w56\""),
-            ("wide", "[-0.30, 0.42, 0.50]", "\"w60\", \"w63\""),
-        ],
+        [&["w44", "w50"], &["w56"], &["w60", "w63"]],
     );
     let narrow = catalogue_scenario(
         &dir,
@@ -314,11 +315,7 @@ fn tubes_squeezed_by_the_pads_are_held_not_called_missed() {
             ("n18", 10.0, 18.0, 45.0, 100.0),
             ("n22", 13.0, 22.0, 55.0, 80.0),
         ],
-        &[
-            ("small", "[0.42, 0.24, 0.50]", "\"n14\""),
-            ("mid", "[0.08, 0.50, 0.50]", "\"n18\""),
-            ("wide", "[-0.30, 0.42, 0.50]", "\"n22\""),
-        ],
+        [&["n14"], &["n18"], &["n22"]],
     );
     for path in [wide, narrow] {
         let scenario = match Scenario::load(&path) {

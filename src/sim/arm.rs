@@ -170,10 +170,10 @@ impl SimArm {
             &mut physics.multibody_joints,
             UrdfMultibodyOptions::DISABLE_SELF_CONTACTS,
         );
-        let find_joint = |name: &str| -> Result<(MultibodyJointHandle, f32), SimError> {
+        // A joint by name: its handle and its index among the URDF's joints.
+        let find_joint = |name: &str| -> Result<(MultibodyJointHandle, usize), SimError> {
             let index = joint_names.iter().position(|n| n == name);
-            let handle =
-                index.and_then(|i| handles.joints[i].joint.map(|h| (h, efforts_by_name[i])));
+            let handle = index.and_then(|i| handles.joints[i].joint.map(|h| (h, i)));
             handle.ok_or_else(|| SimError::MissingJoint {
                 joint: name.to_string(),
                 path: path.to_path_buf(),
@@ -182,17 +182,15 @@ impl SimArm {
         let mut joints = [MultibodyJointHandle::invalid(); DOF];
         let mut efforts = [0.0f32; DOF];
         for (i, name) in kinematics.joints.iter().enumerate() {
-            (joints[i], efforts[i]) = find_joint(name)?;
+            let (handle, j) = find_joint(name)?;
+            (joints[i], efforts[i]) = (handle, efforts_by_name[j]);
         }
         let mut fingers = [MultibodyJointHandle::invalid(); 2];
         let mut finger_stops_m = [0.0; 2];
         for (i, name) in FINGER_JOINTS.iter().enumerate() {
-            fingers[i] = find_joint(name)?.0;
+            let (handle, j) = find_joint(name)?;
             // The joint's lower limit: where the pad stops when the jaws close on nothing.
-            finger_stops_m[i] = joint_names
-                .iter()
-                .position(|n| n == name)
-                .map_or(0.0, |j| lowers_by_name[j].max(0.0));
+            (fingers[i], finger_stops_m[i]) = (handle, lowers_by_name[j].max(0.0));
         }
         couple_fingers(world, &fingers);
         // Every URDF link with a body or a collider, in the file's order; a welded link names
