@@ -38,8 +38,6 @@ const SAME_BOTTLE_OVERLAP_M: f64 = 0.012;
 /// Largest angle between the axis lines a bottle's pose hypotheses may have for it to be
 /// picked, deg: the jaws close square to the best one's, and tolerate this much off square.
 const MAX_AXIS_SPREAD_DEG: f64 = 15.0;
-/// The jaws closed to less than the body's diameter less this have missed it, m.
-const MISSED_GRIP_M: f64 = 0.006;
 
 /// How far the belt is indexed on between looks for a part that no look found, m: less than
 /// the camera's view along the belt, so a part comes into view before it could pass it.
@@ -313,7 +311,11 @@ impl Sorter<'_> {
         let stroke_s = data.gripper.target_m() / JAW_SPEED_M_S;
         data.settle(model, stroke_s + GRIP_BUILD_S)?;
         let gap = data.cell.arm.finger_positions_m(&data.cell.world);
-        if gap[0] + gap[1] < 2.0 * picked.grip_m - MISSED_GRIP_M {
+        if !super::pick_cycle::jaws_hold(
+            gap[0] + gap[1],
+            picked.grip_m,
+            data.cell.arm.closed_gap_m(),
+        ) {
             // Nothing between the jaws: the bottle is not where it was fitted. Open, straight
             // up along the lift and home, and leave it.
             data.gripper.set(picked.open_m, OPEN_FORCE_N);
