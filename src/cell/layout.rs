@@ -1,7 +1,7 @@
 //! Building the cell's physics world from a scenario, through `sim`: the scenery, the belt and
 //! its photo-eye, the bins, the arm at home, and the trial's part and its bottles.
 
-use nalgebra::{Isometry3, Vector3};
+use nalgebra::{Isometry3, Point3, Vector3};
 use rapier3d::prelude::*;
 
 use super::cell_model::CellModel;
@@ -49,6 +49,25 @@ impl BinBody {
             && d.y.abs() <= self.size[1] / 2.0
             && d.z >= -0.01
             && d.z <= self.wall_height
+    }
+
+    /// Whether a body whose axis runs `length_m` along its own z from its origin, at
+    /// `world_from_body`, lies in the bin: its lower end inside it (within the walls, below
+    /// the rim) and its middle over the floor. Either end may be the lower one: a bottle lying
+    /// on others with its base end raised is in the bin as much as one raised at its cap.
+    pub fn holds_axis(&self, world_from_body: &Isometry3<f64>, length_m: f64) -> bool {
+        let ends = [
+            world_from_body * Point3::origin(),
+            world_from_body * Point3::new(0.0, 0.0, length_m),
+        ];
+        let lower = if ends[0].z <= ends[1].z {
+            ends[0]
+        } else {
+            ends[1]
+        };
+        let middle = world_from_body * Point3::new(0.0, 0.0, length_m / 2.0);
+        let over_floor = Vector3::new(middle.x, middle.y, self.floor_center.z);
+        self.contains(&lower.coords) && self.contains(&over_floor)
     }
 }
 
@@ -452,4 +471,89 @@ fn spawn_xy(scenario: &Scenario, lateral: f64) -> [f64; 2] {
         belt.photo_eye_x_m - belt.spawn_upstream_m,
         belt.belt_center_m[1] + lateral,
     ]
+}
+
+#[cfg(test)]
+mod tests {
+    use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+
+    use super::BinBody;
+    use crate::rng::SimRng;
+
+    /// A body of `length` lying at `yaw` with its middle at `(x, y)`, tilted by `pitch` (its
+    /// origin end raised for a positive pitch), and the same body turned end for end.
+    fn lying_both_ways(
+        x: f64,
+        y: f64,
+        z: f64,
+        yaw: f64,
+        pitch: f64,
+        length: f64,
+    ) -> [Isometry3<f64>; 2] {
+        let along = |flip: bool| {
+            let (yaw, pitch) = if flip {
+                (yaw + std::f64::consts::PI, -pitch)
+            } else {
+                (yaw, pitch)
+            };
+            let axis = Vector3::new(
+                yaw.cos() * pitch.cos(),
+                yaw.sin() * pitch.cos(),
+                -pitch.sin(),
+            );
+            let rotation = UnitQuaternion::rotation_between(&Vector3::z(), &axis)
+                .unwrap_or_else(UnitQuaternion::identity);
+            let origin = Vector3::new(x, y, z) - axis * (length / 2.0);
+            Isometry3::from_parts(Translation3::from(origin), rotation)
+        };
+        [along(false), along(true)]
+    }
+
+    #[test]
+    fn a_body_lying_in_a_bin_is_in_it_whichever_end_is_raised() {
+        let mut rng = SimRng::new(2602);
+        for _ in 0..400 {
+            let bin = BinBody {
+                name: "waste".into(),
+                floor_center: Vector3::new(rng.range(-0.6, 0.6), rng.range(-0.6, 0.6), 0.5),
+                size: [rng.range(0.25, 0.5), rng.range(0.25, 0.5)],
+                wall_height: rng.range(0.06, 0.2),
+            };
+            let length = rng.range(0.1, 0.22);
+            let c = bin.floor_center;
+            let yaw = rng.range(-3.2, 3.2);
+            // Lying on what the bin already holds, one end on the floor, the other up to 45
+            // degrees higher, the middle over the floor's inner part.
+            let pitch = rng.range(0.0, 0.75);
+            let (hx, hy) = (bin.size[0] / 2.0, bin.size[1] / 2.0);
+            let reach = (length / 2.0) * pitch.cos();
+            let (x, y) = (
+                c.x + rng.range(-1.0, 1.0) * (hx - reach).max(0.0) * 0.9,
+                c.y + rng.range(-1.0, 1.0) * (hy - reach).max(0.0) * 0.9,
+            );
+            let z = c.z + 0.03 + (length / 2.0) * pitch.sin();
+            let [a, b] = lying_both_ways(x, y, z, yaw, pitch, length);
+            // Its lower end 30 mm over the floor, its whole axis over the floor.
+            assert!(bin.holds_axis(&a, length), "{bin:?} {a:?}");
+            assert!(
+                bin.holds_axis(&b, length),
+                "turned end for end: {bin:?} {b:?}"
+            );
+            // Standing on its floor, or upside down.
+            let standing = Isometry3::translation(x, y, c.z);
+            assert!(bin.holds_axis(&standing, length));
+            let upside_down = Isometry3::from_parts(
+                Translation3::new(x, y, c.z + length),
+                UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI),
+            );
+            assert!(bin.holds_axis(&upside_down, length));
+            // Beside the bin on the table, over its rim, or with its middle outside the walls.
+            let beside = Isometry3::translation(c.x + hx + 0.05, y, c.z);
+            assert!(!bin.holds_axis(&beside, length));
+            let above = Isometry3::translation(x, y, c.z + bin.wall_height + 0.02);
+            assert!(!bin.holds_axis(&above, length));
+            let [hanging, _] = lying_both_ways(c.x + hx + 0.01, y, c.z + 0.03, 0.0, 0.0, length);
+            assert!(!bin.holds_axis(&hanging, length));
+        }
+    }
 }

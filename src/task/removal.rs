@@ -351,17 +351,14 @@ impl Sorter<'_> {
     }
 }
 
-/// Whether bottle `index` is in bin `bin`: its base inside the bin and its middle over the
-/// bin's floor (a bottle stands taller than a bin's walls).
+/// Whether bottle `index` lies in bin `bin` ([`crate::cell::BinBody::holds_axis`]: its lower
+/// end inside the bin and its middle over the bin's floor; a bottle stands taller than a bin's
+/// walls).
 fn in_bin(model: &CellModel, data: &CellData, index: usize, bin: BinId) -> bool {
     let body = data.cell.items.bottles()[index].body;
-    let Some(pose) = data.cell.body_pose(body) else {
-        return false;
-    };
-    let bin = &data.cell.bins[bin.0];
-    let middle = pose * Point3::new(0.0, 0.0, model.scenario().bottle.height_m / 2.0);
-    let over_floor = Vector3::new(middle.x, middle.y, bin.floor_center.z);
-    bin.contains(&pose.translation.vector) && bin.contains(&over_floor)
+    data.cell.body_pose(body).is_some_and(|pose| {
+        data.cell.bins[bin.0].holds_axis(&pose, model.scenario().bottle.height_m)
+    })
 }
 
 /// The bottles among `percept`'s obstacles, nearest the part first. A fit may place one bottle
