@@ -24,6 +24,8 @@ const BORDER_TOUCH_SHARE: f64 = 0.01;
 const INWARD_SHARE: f64 = 0.5;
 /// A belt jog shorter than this would not move the part noticeably in the image, m.
 const MIN_JOG_M: f64 = 0.002;
+/// The steps in which [`surroundings_travel_m`] tries belt travels, m.
+const SURROUND_STEP_M: f64 = 0.01;
 
 /// What the station knows of the cell to turn a sighting into a percept.
 #[derive(Debug, Clone, Copy)]
@@ -109,6 +111,22 @@ impl Sighting {
         (jog.is_finite() && jog >= MIN_JOG_M).then_some(jog)
     }
 
+    /// The belt travel (m, downstream along +x) that brings into view what stands around the
+    /// measured target upstream of it ([`surroundings_travel_m`] with the target's place): the
+    /// part was stopped near the view's upstream edge (a bottle ahead of it tripped the
+    /// photo-eye), and what the camera cannot see there the planner cannot keep clear of.
+    /// `None` when the target's bore was not measured: that is [`Self::border_jog_m`]'s case.
+    pub fn surroundings_jog_m(
+        &self,
+        calibration: &CameraCalibration,
+        frame_px: (u32, u32),
+        surroundings: &Surroundings,
+    ) -> Option<f64> {
+        let target = self.target.as_ref()?;
+        target.bore.as_ref()?;
+        surroundings_travel_m(calibration, frame_px, &target.centre_in_world, surroundings)
+    }
+
     /// What this sighting means for the pick, or `None` when it holds no target part.
     pub fn percept(&self, station: &StationModel<'_>) -> Option<Percept> {
         let target = self.target.as_ref()?;
@@ -160,6 +178,72 @@ impl Sighting {
     }
 }
 
+/// The belt around a part that must be in view before the arm reaches for it.
+#[derive(Debug, Clone, Copy)]
+pub struct Surroundings {
+    /// Distance from the part's axis, m.
+    pub reach_m: f64,
+    /// Top of the belt, world z, m: a bottle standing or lying there is seen when the belt
+    /// under it is.
+    pub belt_top_z_m: f64,
+    /// The belt's edges, world y, least and most, m: nothing stands beyond them.
+    pub belt_y_m: (f64, f64),
+}
+
+/// The belt travel (m, downstream along +x) after which `calibration`'s `frame_px` frame shows
+/// all of the belt within the `surroundings` of the part whose end face is centred at `part`:
+/// `None` when the part's upstream surroundings are in view already, or when no travel up to
+/// the one that brings the part to where the optical axis meets its end-face plane shows all
+/// of them; else the first travel, in steps of [`SURROUND_STEP_M`], that does.
+pub fn surroundings_travel_m(
+    calibration: &CameraCalibration,
+    frame_px: (u32, u32),
+    part: &Point3<f64>,
+    surroundings: &Surroundings,
+) -> Option<f64> {
+    let Surroundings {
+        reach_m,
+        belt_top_z_m,
+        belt_y_m,
+    } = *surroundings;
+    let (w, h) = (f64::from(frame_px.0), f64::from(frame_px.1));
+    let in_view = |q: &Point3<f64>| {
+        calibration
+            .project(q)
+            .is_some_and(|[u, v]| (0.0..=w).contains(&u) && (0.0..=h).contains(&v))
+    };
+    // Points around the part's axis every 10 degrees, those beyond the belt's edges brought
+    // in to them.
+    let around = |travel_m: f64, upstream_only: bool| -> bool {
+        (0..36).all(|k| {
+            let a = std::f64::consts::TAU * f64::from(k) / 36.0;
+            let (dx, dy) = (reach_m * a.cos(), reach_m * a.sin());
+            if upstream_only && dx > -1e-9 {
+                return true;
+            }
+            let y = (part.y + dy).clamp(belt_y_m.0, belt_y_m.1);
+            in_view(&Point3::new(part.x + dx + travel_m, y, belt_top_z_m))
+        })
+    };
+    if around(0.0, true) {
+        return None;
+    }
+    let face = calibration.with_end_face_height(part.z);
+    let most_m = face
+        .pixel_to_plane(calibration.cx_px, calibration.cy_px)
+        .ok()?
+        .x
+        - part.x;
+    let mut travel_m = SURROUND_STEP_M;
+    while travel_m <= most_m {
+        if around(travel_m, false) {
+            return Some(travel_m);
+        }
+        travel_m += SURROUND_STEP_M;
+    }
+    None
+}
+
 /// The borders of a `frame_px` large frame that `box_px` reaches within
 /// [`BORDER_TOUCH_SHARE`] of (a box cut by the image's edge), as inward unit normals.
 pub(super) fn touched_borders(box_px: &[f64; 4], frame_px: (u32, u32)) -> Vec<[f64; 2]> {
@@ -174,4 +258,108 @@ pub(super) fn touched_borders(box_px: &[f64; 4], frame_px: (u32, u32)) -> Vec<[f
         .zip(inward)
         .filter_map(|(touches, inward)| touches.then_some(inward))
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use std::f64::consts::PI;
+
+    use nalgebra::{Point3, Vector3};
+
+    use super::{Surroundings, surroundings_travel_m};
+    use crate::camera::CameraCalibration;
+    use crate::rng::SimRng;
+
+    /// Whether every point on the circle of `radius` around `part` (brought in to the belt's
+    /// edges), carried `travel` downstream, at `upstream_only` its upstream half, is in view.
+    fn circle_in_view(
+        calibration: &CameraCalibration,
+        frame: (f64, f64),
+        part: &Point3<f64>,
+        radius: f64,
+        s: &Surroundings,
+        (travel, upstream_only): (f64, bool),
+    ) -> bool {
+        (0..72).all(|k| {
+            let a = 2.0 * PI * f64::from(k) / 72.0;
+            let (dx, dy) = (radius * a.cos(), radius * a.sin());
+            if upstream_only && dx >= 0.0 {
+                return true;
+            }
+            let y = (part.y + dy).clamp(s.belt_y_m.0, s.belt_y_m.1);
+            let q = Point3::new(part.x + dx + travel, y, s.belt_top_z_m);
+            calibration
+                .project(&q)
+                .is_some_and(|[u, v]| (0.0..=frame.0).contains(&u) && (0.0..=frame.1).contains(&v))
+        })
+    }
+
+    #[test]
+    fn a_jog_brings_the_belt_around_the_part_into_view_over_the_camera_envelope() {
+        let mut rng = SimRng::new(2424);
+        let (mut jogged, mut in_view_already) = (0, 0);
+        for case in 0..400 {
+            // A belt along x, a camera anywhere in the envelope over its station.
+            let belt_top = rng.range(0.5, 0.9);
+            let (belt_y, half) = (rng.range(-0.6, -0.3), rng.range(0.12, 0.25));
+            let station = Point3::new(rng.range(-0.1, 0.2), belt_y, belt_top);
+            let (tilt, heading) = (rng.range(0.0, 35f64.to_radians()), rng.range(-PI, PI));
+            let up = Vector3::new(
+                tilt.sin() * heading.cos(),
+                tilt.sin() * heading.sin(),
+                tilt.cos(),
+            );
+            let eye = station + up * rng.range(0.35, 1.2);
+            let roll = rng.range(-PI, PI);
+            let right = Vector3::new(roll.cos(), roll.sin(), 0.0);
+            let Some(pose) = CameraCalibration::look_at(&eye, &station, &right) else {
+                continue;
+            };
+            let (w, h) = [(640, 480), (1280, 960), (2048, 1536)][case % 3];
+            let fov = rng.range(35f64, 80.0).to_radians();
+            let calibration = CameraCalibration::from_fov(w, h, fov, pose, belt_top);
+            let frame = (f64::from(w), f64::from(h));
+            let s = Surroundings {
+                reach_m: rng.range(0.06, 0.14),
+                belt_top_z_m: belt_top,
+                belt_y_m: (belt_y - half, belt_y + half),
+            };
+            // A part upstream of the station, well in view or near the view's edge.
+            let part = Point3::new(
+                station.x - rng.range(0.0, 0.35),
+                belt_y + rng.range(-0.7, 0.7) * half,
+                belt_top + rng.range(0.03, 0.12),
+            );
+            // The sampled polygon's inner circle, 0.99 of the reach, must be in view.
+            let inner = 0.99 * s.reach_m;
+            match surroundings_travel_m(&calibration, (w, h), &part, &s) {
+                Some(travel) => {
+                    jogged += 1;
+                    let face = calibration.with_end_face_height(part.z);
+                    let to_centre = face
+                        .pixel_to_plane(calibration.cx_px, calibration.cy_px)
+                        .map_or(f64::NAN, |p| p.x - part.x);
+                    assert!(travel > 0.0 && travel <= to_centre + 1e-9, "case {case}");
+                    assert!(
+                        circle_in_view(&calibration, frame, &part, inner, &s, (travel, false)),
+                        "case {case}: the part's surroundings are not in view after {travel} m"
+                    );
+                    assert!(
+                        !circle_in_view(&calibration, frame, &part, s.reach_m, &s, (0.0, true)),
+                        "case {case}: a jog where the upstream side was in view"
+                    );
+                }
+                None => {
+                    let upstream_seen =
+                        circle_in_view(&calibration, frame, &part, inner, &s, (0.0, true));
+                    in_view_already += usize::from(upstream_seen);
+                }
+            }
+        }
+        assert!(jogged >= 40, "only {jogged} of 400 parts were jogged");
+        assert!(
+            in_view_already >= 100,
+            "only {in_view_already} already in view"
+        );
+    }
 }

@@ -13,8 +13,8 @@ use crate::render::Scene;
 use crate::rng::SimRng;
 use crate::scenario::{Catalogue, PartTypeId};
 use crate::station::{
-    CameraPerception, NEIGHBOURHOOD_M, Percept, Sighting, StationItem, StationModel, TargetRule,
-    bottle_obstacle, part_obstacle,
+    CameraPerception, NEIGHBOURHOOD_M, Percept, Sighting, StationItem, StationModel, Surroundings,
+    TargetRule, bottle_obstacle, part_obstacle,
 };
 
 /// Most belt jogs that bring a part cut by the image border into view before the cell works
@@ -49,7 +49,12 @@ impl Sorter<'_> {
                 for _ in 0..MAX_BORDER_JOGS {
                     let frame_px = (rig.width_px, rig.height_px);
                     let belt_top_z = data.cell.belt_top_z;
-                    let jog = sighting.border_jog_m(&rig.calibration, frame_px, belt_top_z);
+                    let jog = sighting
+                        .border_jog_m(&rig.calibration, frame_px, belt_top_z)
+                        .or_else(|| {
+                            let around = surroundings_to_see(model, &sighting, belt_top_z)?;
+                            sighting.surroundings_jog_m(&rig.calibration, frame_px, &around)
+                        });
                     let Some(jog_m) = jog else {
                         break;
                     };
@@ -109,6 +114,37 @@ impl Sorter<'_> {
         Ok(sighting)
     }
 }
+
+/// The belt around the target part the camera must see before the arm reaches for it: within
+/// the part's radius, [`SURROUND_MARGIN_M`] and a bottle's diameter of its axis, so that a
+/// bottle standing with its side within the margin of the part's is seen whole. `None` where
+/// nothing could stand there unseen: a scenario without bottles, or a stream, whose items the
+/// cell tracks as the belt brings them.
+fn surroundings_to_see(
+    model: &CellModel,
+    sighting: &Sighting,
+    belt_top_z_m: f64,
+) -> Option<Surroundings> {
+    let scenario = model.scenario();
+    if !scenario.bottle.enabled || scenario.is_stream() {
+        return None;
+    }
+    let target = sighting.target.as_ref()?;
+    let part = model.catalogue().part(PartTypeId(target.type_index));
+    let belt = &scenario.conveyor;
+    let half_m = belt.width_m / 2.0;
+    Some(Surroundings {
+        reach_m: part.outer_radius_m() + SURROUND_MARGIN_M + 2.0 * scenario.bottle.radius_m,
+        belt_top_z_m,
+        belt_y_m: (
+            belt.belt_center_m[1] - half_m,
+            belt.belt_center_m[1] + half_m,
+        ),
+    })
+}
+
+/// See [`surroundings_to_see`], m.
+const SURROUND_MARGIN_M: f64 = 0.02;
 
 impl CellData {
     /// Runs the belt downstream by `distance_m` of encoder travel at the scenario's speed and
