@@ -24,7 +24,7 @@ const BORDER_TOUCH_SHARE: f64 = 0.01;
 const INWARD_SHARE: f64 = 0.5;
 /// A belt jog shorter than this would not move the part noticeably in the image, m.
 const MIN_JOG_M: f64 = 0.002;
-/// The steps in which [`surroundings_travel_m`] tries belt travels, m.
+/// The steps in which [`surroundings_travel_m`] tries belt travels (1 cm), m.
 const SURROUND_STEP_M: f64 = 0.01;
 
 /// What the station knows of the cell to turn a sighting into a percept.
@@ -194,7 +194,7 @@ pub struct Surroundings {
 /// all of the belt within the `surroundings` of the part whose end face is centred at `part`:
 /// `None` when the part's upstream surroundings are in view already, or when no travel up to
 /// the one that brings the part to where the optical axis meets its end-face plane shows all
-/// of them; else the first travel, in steps of [`SURROUND_STEP_M`], that does.
+/// of them; else the first travel, in steps of 1 cm, that does.
 pub fn surroundings_travel_m(
     calibration: &CameraCalibration,
     frame_px: (u32, u32),
