@@ -381,15 +381,24 @@ impl BottleFitter {
                 belt.tubes,
                 belt_top_z_m,
             );
-            let explaining: Vec<BottlePose> = candidates
-                .iter()
-                .copied()
-                .filter(|p| {
-                    self.projected_box(&p.world_from_bottle).is_some_and(|b| {
-                        box_residual_px(&e.clip(b), box_px) <= RESIDUAL_SHARE * diagonal
-                    })
+            let explains = |p: &BottlePose| {
+                self.projected_box(&p.world_from_bottle).is_some_and(|b| {
+                    box_residual_px(&e.clip(b), box_px) <= RESIDUAL_SHARE * diagonal
                 })
-                .collect();
+            };
+            let mut explaining: Vec<BottlePose> =
+                candidates.iter().copied().filter(explains).collect();
+            // A box the border cuts that no lying hypothesis explains: a lying bottle running
+            // out of the frame is placed by the box's whole sides, and the outline judges it
+            // beside the standing ones.
+            if !explaining.iter().any(|p| p.lying) {
+                let cut_lying = self.clear_of_tubes(
+                    self.cut_lying_candidates(box_px, belt_top_z_m),
+                    belt.tubes,
+                    belt_top_z_m,
+                );
+                explaining.extend(cut_lying.into_iter().filter(explains));
+            }
             if !explaining.is_empty() {
                 let cells = Cells::read(box_px, e, excluded, |u, v| {
                     self.sees_belt(u, v, belt_top_z_m)

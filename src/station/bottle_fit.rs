@@ -20,6 +20,9 @@ const LYING_YAW_STEPS: usize = 180;
 const AMBIGUITY_PX: f64 = 2.0;
 /// A box side within this share of the frame's width (height) of its border is cut by it.
 const CUT_SHARE: f64 = 0.01;
+/// A box side within this share of the frame's width (height) of its border touches it: the
+/// bottle runs on out of the frame.
+const TOUCH_SHARE: f64 = 0.003;
 
 /// A lying pose whose axis the image supports less than this share of the best lying pose's
 /// is taken for that one's mirror image in the box, and dropped.
@@ -260,6 +263,40 @@ impl BottleFitter {
         poses
     }
 
+    /// Lying hypotheses at each yaw placed by the sides of `box_px` that the frame's border
+    /// leaves whole (as [`Self::fit_candidates`] places a standing one), best box first; none
+    /// when the box does not reach the border. Centred on the cut box, a lying bottle whose end
+    /// the border cuts off lands where its box cannot match the detection's.
+    pub(super) fn cut_lying_candidates(
+        &self,
+        box_px: &[f64; 4],
+        belt_top_z_m: f64,
+    ) -> Vec<BottlePose> {
+        let Some(cut) = self
+            .frame_px
+            .and_then(|frame| CutBox::of(box_px, frame, TOUCH_SHARE))
+        else {
+            return Vec::new();
+        };
+        let mid_z = belt_top_z_m + self.radius_m;
+        let mut poses: Vec<BottlePose> = (0..LYING_YAW_STEPS)
+            .filter_map(|k| {
+                let yaw = std::f64::consts::TAU * k as f64 / LYING_YAW_STEPS as f64;
+                let lying_at = |x, y| self.pose_at(true, yaw, x, y, belt_top_z_m);
+                let ([x, y], b) =
+                    self.silhouette
+                        .slide_to_cut_box(&self.calibration, &cut, mid_z, lying_at)?;
+                Some(BottlePose {
+                    world_from_bottle: lying_at(x, y),
+                    lying: true,
+                    residual_px: box_residual_px(&b, box_px),
+                })
+            })
+            .collect();
+        poses.sort_by(|a, b| a.residual_px.total_cmp(&b.residual_px));
+        poses
+    }
+
     /// `poses` (a [`Self::fit`] to `box_px`) less the lying ones the image contradicts. A box
     /// cannot tell a bottle lying along one of its diagonals from one along the other; the
     /// pixels can: along the true pose's axis they are the bottle's, along its mirror's mostly
@@ -410,6 +447,10 @@ fn ring_median(
     }
     Some(median)
 }
+
+#[cfg(test)]
+#[path = "cut_lying_tests.rs"]
+mod cut_lying_tests;
 
 #[cfg(test)]
 pub(super) mod tests {
