@@ -522,8 +522,8 @@ mod tests {
             let length = rng.range(0.1, 0.22);
             let c = bin.floor_center;
             let yaw = rng.range(-3.2, 3.2);
-            // Lying on what the bin already holds, one end on the floor, the other up to 45
-            // degrees higher, the middle over the floor's inner part.
+            // Lying on what the bin already holds, its lower end 30 mm over the floor, the other
+            // up to 43 degrees higher, the middle over the floor's inner part.
             let pitch = rng.range(0.0, 0.75);
             let (hx, hy) = (bin.size[0] / 2.0, bin.size[1] / 2.0);
             let reach = (length / 2.0) * pitch.cos();
@@ -533,7 +533,7 @@ mod tests {
             );
             let z = c.z + 0.03 + (length / 2.0) * pitch.sin();
             let [a, b] = lying_both_ways(x, y, z, yaw, pitch, length);
-            // Its lower end 30 mm over the floor, its whole axis over the floor.
+            // Either way round, it is in the bin.
             assert!(bin.holds_axis(&a, length), "{bin:?} {a:?}");
             assert!(
                 bin.holds_axis(&b, length),
