@@ -212,20 +212,10 @@ impl BottleFitter {
     pub(super) fn fit_candidates(&self, box_px: &[f64; 4], belt_top_z_m: f64) -> Vec<BottlePose> {
         let centre = [(box_px[0] + box_px[2]) / 2.0, (box_px[1] + box_px[3]) / 2.0];
         let mut hypotheses = vec![(false, 0.0)];
-        hypotheses.extend((0..LYING_YAW_STEPS).map(|k| {
-            (
-                true,
-                std::f64::consts::TAU * k as f64 / LYING_YAW_STEPS as f64,
-            )
-        }));
+        hypotheses.extend(lying_yaws().map(|yaw| (true, yaw)));
         let mut poses: Vec<BottlePose> = Vec::new();
         for (lying, yaw) in hypotheses {
-            let mid_z = belt_top_z_m
-                + if lying {
-                    self.radius_m
-                } else {
-                    self.height_m / 2.0
-                };
+            let mid_z = self.mid_z(lying, belt_top_z_m);
             let pose_at = |x, y| self.pose_at(lying, yaw, x, y, belt_top_z_m);
             let Some(([x, y], b)) =
                 self.silhouette
@@ -246,18 +236,8 @@ impl BottleFitter {
         let cut = self
             .frame_px
             .and_then(|frame| CutBox::of(box_px, frame, CUT_SHARE));
-        let standing_at = |x, y| self.pose_at(false, 0.0, x, y, belt_top_z_m);
-        let mid_z = belt_top_z_m + self.height_m / 2.0;
-        if let Some(cut) = cut
-            && let Some(([x, y], b)) =
-                self.silhouette
-                    .slide_to_cut_box(&self.calibration, &cut, mid_z, standing_at)
-        {
-            poses.push(BottlePose {
-                world_from_bottle: standing_at(x, y),
-                lying: false,
-                residual_px: box_residual_px(&b, box_px),
-            });
+        if let Some(cut) = cut {
+            poses.extend(self.by_cut_sides(&cut, box_px, (false, 0.0), belt_top_z_m));
         }
         poses.sort_by(|a, b| a.residual_px.total_cmp(&b.residual_px));
         poses
@@ -278,23 +258,44 @@ impl BottleFitter {
         else {
             return Vec::new();
         };
-        let mid_z = belt_top_z_m + self.radius_m;
-        let mut poses: Vec<BottlePose> = (0..LYING_YAW_STEPS)
-            .filter_map(|k| {
-                let yaw = std::f64::consts::TAU * k as f64 / LYING_YAW_STEPS as f64;
-                let lying_at = |x, y| self.pose_at(true, yaw, x, y, belt_top_z_m);
-                let ([x, y], b) =
-                    self.silhouette
-                        .slide_to_cut_box(&self.calibration, &cut, mid_z, lying_at)?;
-                Some(BottlePose {
-                    world_from_bottle: lying_at(x, y),
-                    lying: true,
-                    residual_px: box_residual_px(&b, box_px),
-                })
-            })
+        let mut poses: Vec<BottlePose> = lying_yaws()
+            .filter_map(|yaw| self.by_cut_sides(&cut, box_px, (true, yaw), belt_top_z_m))
             .collect();
         poses.sort_by(|a, b| a.residual_px.total_cmp(&b.residual_px));
         poses
+    }
+
+    /// The world z of the middle of a standing (`lying` false) or lying bottle
+    /// on a belt whose top is at `belt_top_z_m`.
+    fn mid_z(&self, lying: bool, belt_top_z_m: f64) -> f64 {
+        belt_top_z_m
+            + if lying {
+                self.radius_m
+            } else {
+                self.height_m / 2.0
+            }
+    }
+
+    /// The hypothesis `(lying, yaw)` slid over the belt until the sides of `cut` (the detection
+    /// `box_px`, cut by the frame's border) that the border leaves whole match its box, with
+    /// its residual to `box_px`; `None` when it leaves the camera's view.
+    fn by_cut_sides(
+        &self,
+        cut: &CutBox,
+        box_px: &[f64; 4],
+        (lying, yaw): (bool, f64),
+        belt_top_z_m: f64,
+    ) -> Option<BottlePose> {
+        let pose_at = |x, y| self.pose_at(lying, yaw, x, y, belt_top_z_m);
+        let mid_z = self.mid_z(lying, belt_top_z_m);
+        let ([x, y], b) =
+            self.silhouette
+                .slide_to_cut_box(&self.calibration, cut, mid_z, pose_at)?;
+        Some(BottlePose {
+            world_from_bottle: pose_at(x, y),
+            lying,
+            residual_px: box_residual_px(&b, box_px),
+        })
     }
 
     /// `poses` (a [`Self::fit`] to `box_px`) less the lying ones the image contradicts. A box
@@ -389,6 +390,11 @@ const BODY_LEVELS: usize = 16;
 const BODY_ANGLES: usize = 6;
 const BODY_SPAN: (f64, f64) = (0.04, 0.88);
 const BODY_DEPTH: f64 = 0.6;
+
+/// The yaws of the lying hypotheses, [`LYING_YAW_STEPS`] over a full turn, rad.
+fn lying_yaws() -> impl Iterator<Item = f64> {
+    (0..LYING_YAW_STEPS).map(|k| std::f64::consts::TAU * k as f64 / LYING_YAW_STEPS as f64)
+}
 
 /// Points inside a lathed body of `height_m` whose surface points are `surface` (its own
 /// frame, axis along z): at each level the body's radius there is the widest surface point

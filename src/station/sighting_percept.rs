@@ -3,6 +3,7 @@
 
 use nalgebra::Point3;
 
+use super::bottle_unboxed::BeltBand;
 use super::camera_percept::Sighting;
 use super::percept::{Percept, bottle_obstacle, part_obstacle};
 use super::silhouette::CutBox;
@@ -89,8 +90,7 @@ impl Sighting {
                 if motion <= 0.0 || !helps || worsens {
                     return None;
                 }
-                let face = calibration.with_end_face_height(p.z);
-                face.pixel_to_plane(cx, cy).ok()?.x - p.x
+                travel_to_axis_m(calibration, &p)?
             }
             None if !self.bottles.is_empty() => {
                 let belt = calibration.with_end_face_height(belt_top_z_m);
@@ -186,8 +186,18 @@ pub struct Surroundings {
     /// Top of the belt, world z, m: a bottle standing or lying there is seen when the belt
     /// under it is.
     pub belt_top_z_m: f64,
-    /// The belt's edges, world y, least and most, m: nothing stands beyond them.
-    pub belt_y_m: (f64, f64),
+    /// The belt: nothing stands beyond its edges.
+    pub belt: BeltBand,
+}
+
+/// The belt travel (m, downstream along +x) that brings `part` (a point on an end face) to
+/// where `calibration`'s optical axis meets the plane at its height.
+fn travel_to_axis_m(calibration: &CameraCalibration, part: &Point3<f64>) -> Option<f64> {
+    let face = calibration.with_end_face_height(part.z);
+    let axis = face
+        .pixel_to_plane(calibration.cx_px, calibration.cy_px)
+        .ok()?;
+    Some(axis.x - part.x)
 }
 
 /// The belt travel (m, downstream along +x) after which `calibration`'s `frame_px` frame shows
@@ -204,8 +214,12 @@ pub fn surroundings_travel_m(
     let Surroundings {
         reach_m,
         belt_top_z_m,
-        belt_y_m,
+        belt,
     } = *surroundings;
+    let belt_y_m = (
+        belt.centre_y_m - belt.half_width_m,
+        belt.centre_y_m + belt.half_width_m,
+    );
     let (w, h) = (f64::from(frame_px.0), f64::from(frame_px.1));
     let in_view = |q: &Point3<f64>| {
         calibration
@@ -228,12 +242,7 @@ pub fn surroundings_travel_m(
     if around(0.0, true) {
         return None;
     }
-    let face = calibration.with_end_face_height(part.z);
-    let most_m = face
-        .pixel_to_plane(calibration.cx_px, calibration.cy_px)
-        .ok()?
-        .x
-        - part.x;
+    let most_m = travel_to_axis_m(calibration, part)?;
     let mut travel_m = SURROUND_STEP_M;
     while travel_m <= most_m {
         if around(travel_m, false) {
@@ -266,7 +275,7 @@ mod tests {
 
     use nalgebra::{Point3, Vector3};
 
-    use super::{Surroundings, surroundings_travel_m};
+    use super::{BeltBand, Surroundings, surroundings_travel_m};
     use crate::camera::CameraCalibration;
     use crate::rng::SimRng;
 
@@ -286,7 +295,8 @@ mod tests {
             if upstream_only && dx >= 0.0 {
                 return true;
             }
-            let y = (part.y + dy).clamp(s.belt_y_m.0, s.belt_y_m.1);
+            let (centre, half) = (s.belt.centre_y_m, s.belt.half_width_m);
+            let y = (part.y + dy).clamp(centre - half, centre + half);
             let q = Point3::new(part.x + dx + travel, y, s.belt_top_z_m);
             calibration
                 .project(&q)
@@ -322,7 +332,10 @@ mod tests {
             let s = Surroundings {
                 reach_m: rng.range(0.06, 0.14),
                 belt_top_z_m: belt_top,
-                belt_y_m: (belt_y - half, belt_y + half),
+                belt: BeltBand {
+                    centre_y_m: belt_y,
+                    half_width_m: half,
+                },
             };
             // A part upstream of the station, well in view or near the view's edge.
             let part = Point3::new(

@@ -13,8 +13,8 @@ use crate::render::Scene;
 use crate::rng::SimRng;
 use crate::scenario::{Catalogue, PartTypeId};
 use crate::station::{
-    CameraPerception, NEIGHBOURHOOD_M, Percept, Sighting, StationItem, StationModel, Surroundings,
-    TargetRule, bottle_obstacle, part_obstacle,
+    BeltBand, CameraPerception, NEIGHBOURHOOD_M, Percept, Sighting, StationItem, StationModel,
+    Surroundings, TargetRule, bottle_obstacle, part_obstacle,
 };
 
 /// Most belt jogs that bring a part cut by the image border into view before the cell works
@@ -131,15 +131,10 @@ fn surroundings_to_see(
     }
     let target = sighting.target.as_ref()?;
     let part = model.catalogue().part(PartTypeId(target.type_index));
-    let belt = &scenario.conveyor;
-    let half_m = belt.width_m / 2.0;
     Some(Surroundings {
         reach_m: part.outer_radius_m() + SURROUND_MARGIN_M + 2.0 * scenario.bottle.radius_m,
         belt_top_z_m,
-        belt_y_m: (
-            belt.belt_center_m[1] - half_m,
-            belt.belt_center_m[1] + half_m,
-        ),
+        belt: BeltBand::of(&scenario.conveyor),
     })
 }
 
