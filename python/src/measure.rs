@@ -5,7 +5,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use twincell::camera::{CameraCalibration, CameraJson};
 use twincell::perception::PerceptionError;
-use twincell::perception::bore::BoreDetector;
+use twincell::perception::bore::{BoreDetector, BoreDetectorParams};
 use twincell::perception::calibration::MeasureOnPlane;
 use twincell::perception::roundness::DEFAULT_MAX_UPR;
 
@@ -138,8 +138,9 @@ pub fn measure<'py>(
             ),
         ));
     }
+    let params = BoreDetectorParams::for_image(gray.width(), gray.height());
     let report = py
-        .detach(|| BoreDetector::default().detect_report(&gray))
+        .detach(|| BoreDetector::new(params).detect_report(&gray))
         .map_err(|e| match e {
             PerceptionError::ImageTooSmall { .. } => bad_value("image", e),
             other => PyRuntimeError::new_err(format!("the metrology failed: {other}")),

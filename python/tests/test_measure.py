@@ -68,6 +68,24 @@ def test_a_grey_image_is_measured_in_pixels():
     assert "r_mm" not in circle
 
 
+def test_a_close_up_bore_larger_than_the_cells_frames_hold_is_measured():
+    # A 2448x2048 close-up whose bore (radius 700 px) is past the 400 px the cell's 1280x960
+    # frames are tuned for: the largest bore reported grows to half the shorter side.
+    h, w, cx, cy, bore, outer = 2048, 2448, 1230.3, 1019.6, 700.0, 980.0
+    y, x = np.mgrid[0:h, 0:w]
+    r = np.hypot(x - cx, y - cy)
+    # Edges anti-aliased by the share of each pixel inside (a 1 px ramp across the outline).
+    inside_bore = np.clip(bore + 0.5 - r, 0.0, 1.0)
+    inside_outer = np.clip(outer + 0.5 - r, 0.0, 1.0)
+    image = 70.0 + (200.0 - 70.0) * inside_outer - (200.0 - 20.0) * inside_bore
+    image += np.random.default_rng(3).normal(0.0, 2.0, image.shape)
+    result = twincell.measure(np.clip(image, 0, 255).round().astype(np.uint8))
+    [circle] = result["circles"]
+    assert circle["cx"] == pytest.approx(cx, abs=0.1)
+    assert circle["cy"] == pytest.approx(cy, abs=0.1)
+    assert circle["r"] == pytest.approx(bore, abs=0.1)
+
+
 def good_calibration():
     return {
         "width_px": 64, "height_px": 48, "fx_px": 80.0, "fy_px": 80.0, "cx_px": 31.5,

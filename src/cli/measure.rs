@@ -43,7 +43,7 @@ use std::time::Instant;
 
 use image::GrayImage;
 use serde::Serialize;
-use twincell::perception::bore::{BoreDetector, SkippedBore};
+use twincell::perception::bore::{BoreDetector, BoreDetectorParams, SkippedBore};
 
 use crate::cli::{BadInput, EXIT_BAD_INPUT};
 use millimetres::{Scale, circle_out, positive, scale_of};
@@ -158,7 +158,6 @@ pub fn run(args: &MeasureArgs) -> anyhow::Result<ExitCode> {
     {
         return Err(BadInput(format!("--guard-band-mm: {g} is not a length >= 0")).into());
     }
-    let detector = BoreDetector::default();
     let mut images = Vec::with_capacity(args.images.len());
     let mut any_bad = false;
     for path in &args.images {
@@ -173,7 +172,11 @@ pub fn run(args: &MeasureArgs) -> anyhow::Result<ExitCode> {
                     image.height()
                 ));
             }
-            time_detect(&detector, &image)
+            let (w, h) = image.dimensions();
+            time_detect(
+                &BoreDetector::new(BoreDetectorParams::for_image(w, h)),
+                &image,
+            )
         });
         let entry = match measured {
             Ok((report, ms)) => ImageOut {

@@ -130,6 +130,17 @@ impl Default for BoreDetectorParams {
 }
 
 impl BoreDetectorParams {
+    /// The defaults for a `width_px` x `height_px` image from any camera: the largest bore
+    /// reported grows to half the image's shorter side (the largest a bore whole in view can
+    /// be), so a close-up from a high-resolution camera is measured too. Every other limit is
+    /// the default's.
+    pub fn for_image(width_px: u32, height_px: u32) -> Self {
+        let mut params = Self::default();
+        let half_short_side = 0.5 * f64::from(width_px.min(height_px));
+        params.max_radius_px = params.max_radius_px.max(half_short_side);
+        params
+    }
+
     /// The parameters for images with `factor` times the pixels per millimetre these are tuned
     /// for (an area of interest read at a finer pitch): the spatial windows and size limits
     /// scale; the edge profile's, set by the optics' blur in pixels, do not.
