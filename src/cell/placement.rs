@@ -11,6 +11,8 @@ use crate::sim::BottlePlacement;
 pub const CLEARANCE_M: f64 = 0.01;
 /// Random draws per bottle before the deterministic search takes over.
 const RANDOM_DRAWS: usize = 64;
+/// Layouts drawn before a trial's bottles are declared to fit nowhere ([`place_bottles`]).
+const LAYOUT_ATTEMPTS: usize = 16;
 /// Angles around the part the deterministic search tries.
 const SEARCH_ANGLES: usize = 72;
 /// Yaws of a lying bottle the deterministic search tries over a half turn.
@@ -331,7 +333,8 @@ impl Slot<'_> {
 /// centres `bottle.distance_range_m` from the part's and at least [`CLEARANCE_M`] clear of it;
 /// each on the belt, clear of the others by [`CLEARANCE_M`], lying with probability
 /// `bottle.lying_fraction`. Up to 64 random draws a bottle, then a deterministic scan of the
-/// ranges; an error when even that finds no place.
+/// ranges; when a bottle finds no place, the whole layout is drawn again (the count kept), up to
+/// 16 layouts; an error when none fits.
 pub fn place_bottles(
     scenario: &Scenario,
     part: PartSpot,
@@ -347,6 +350,26 @@ pub fn place_bottles(
     } else {
         low as usize
     };
+    let mut attempt = 0;
+    loop {
+        match try_layout(scenario, part, count, rng) {
+            Ok(placed) => return Ok(placed),
+            // Earlier bottles can take the only room a later one had: a fresh layout from the
+            // same stream (a trial that places at once draws exactly as it always did).
+            Err(_) if attempt + 1 < LAYOUT_ATTEMPTS => attempt += 1,
+            Err(e) => return Err(e),
+        }
+    }
+}
+
+/// One layout of `count` bottles around `part`, bottle after bottle (see [`place_bottles`]).
+fn try_layout(
+    scenario: &Scenario,
+    part: PartSpot,
+    count: usize,
+    rng: &mut SimRng,
+) -> Result<Vec<BottlePlacement>, PlacementError> {
+    let bottle = &scenario.bottle;
     let mut placed: Vec<BottlePlacement> = Vec::with_capacity(count);
     for index in 0..count {
         let slot = Slot {

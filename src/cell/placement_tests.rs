@@ -269,3 +269,67 @@ fn a_fixed_count_of_one_draws_as_the_paper_always_did() {
         assert_eq!(rng, by_hand, "seed {seed}: the stream moved on differently");
     }
 }
+
+/// A crowded station (4-6 bottles, two of them 0-10 mm from the part, the rest 80-240 mm away,
+/// half lying) over parts across the whole lateral offset: the first bottles can take the only
+/// room a later lying one had, and a single greedy pass then gave up on 6 of these 400 draws.
+/// Drawing the layout again places every one, each within its constraints.
+#[test]
+fn a_crowded_station_is_laid_out_by_drawing_the_layout_again() {
+    let mut scenario = paper();
+    let b = &mut scenario.bottle;
+    b.count_range = [4, 6];
+    b.near_count = 2;
+    b.near_gap_range_m = Some([0.0, 0.01]);
+    b.distance_range_m = [0.08, 0.24];
+    b.lying_fraction = 0.5;
+    let belt = scenario.conveyor.clone();
+    let offset = scenario.parts.max_lateral_offset_m;
+    let mut rng = SimRng::new(2417);
+    for trial in 0..400 {
+        let radius = rng.range(0.017, 0.031);
+        let part = PartSpot {
+            xy: [-0.25, belt.belt_center_m[1] + rng.range(-offset, offset)],
+            radius,
+        };
+        let bottles = place_bottles(&scenario, part, &mut SimRng::new(9000 + trial))
+            .unwrap_or_else(|e| panic!("draw {trial}: {e}"));
+        let b = &scenario.bottle;
+        assert!((4..=6).contains(&bottles.len()));
+        let disc = Footprint::Disc {
+            center: part.xy,
+            radius,
+        };
+        let prints: Vec<Footprint> = bottles
+            .iter()
+            .map(|p| Footprint::bottle(p, b.radius_m, b.height_m))
+            .collect();
+        for (i, print) in prints.iter().enumerate() {
+            let gap = disc.gap(print);
+            if i < 2 {
+                assert!(
+                    (-1e-6..=0.01 + 1e-6).contains(&gap),
+                    "{trial}: near gap {gap}"
+                );
+            } else {
+                assert!(
+                    gap > CLEARANCE_M,
+                    "{trial}: bottle {i} {gap} m from the part"
+                );
+            }
+            let [y0, y1] = print.y_extent();
+            let half = belt.width_m / 2.0;
+            assert!(
+                y0 >= belt.belt_center_m[1] - half - 1e-12,
+                "{trial}: off the belt"
+            );
+            assert!(
+                y1 <= belt.belt_center_m[1] + half + 1e-12,
+                "{trial}: off the belt"
+            );
+            for other in &prints[..i] {
+                assert!(other.gap(print) > CLEARANCE_M, "{trial}: bottles overlap");
+            }
+        }
+    }
+}
