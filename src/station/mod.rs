@@ -38,7 +38,9 @@ pub use lying_part::{LyingPart, LyingPartFinder, TubeSize};
 pub use measured_tube::{BeltScene, MeasuredTube};
 pub use metrology_study::{ErrorSummary, KnownPart, MetrologyStudy, ShotErrors, StudySummary};
 pub use percept::{PerceivedObstacle, Percept, bottle_obstacle, part_obstacle};
-pub use sighting_percept::{NEIGHBOURHOOD_M, StationModel, Surroundings, surroundings_travel_m};
+pub use sighting_percept::{
+    NEIGHBOURHOOD_M, StationModel, Surroundings, cut_neighbour_travel_m, surroundings_travel_m,
+};
 pub use silhouette::{Silhouette, box_residual_px};
 pub use tracks::{
     BeltPoint, ItemKind, ItemSighting, Track, TrackEnd, TrackId, TrackSet, TrackerParams, ViewSpan,

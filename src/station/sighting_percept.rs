@@ -127,6 +127,39 @@ impl Sighting {
         surroundings_travel_m(calibration, frame_px, &target.centre_in_world, surroundings)
     }
 
+    /// The belt travel (m, downstream along +x) that brings the measured target to the optical
+    /// axis when a bottle the frame's border cuts comes within `reach_m` of the target's axis
+    /// upstream of it ([`cut_neighbour_travel_m`]): what of it lies beyond the border the fit
+    /// can only guess, and the arm reaches beside it. Bottles are `bottle_length_m` long.
+    pub fn cut_neighbour_jog_m(
+        &self,
+        calibration: &CameraCalibration,
+        frame_px: (u32, u32),
+        reach_m: f64,
+        bottle_length_m: f64,
+    ) -> Option<f64> {
+        let target = self.target.as_ref()?;
+        target.bore.as_ref()?;
+        let axes: Vec<[Point3<f64>; 2]> = self
+            .bottles
+            .iter()
+            .filter(|b| {
+                self.detections.get(b.detection).is_some_and(|d| {
+                    !touched_borders(&d.box_px.map(f64::from), frame_px).is_empty()
+                })
+            })
+            .flat_map(|b| &b.poses)
+            .map(|p| {
+                let w = &p.world_from_bottle;
+                [
+                    w * Point3::origin(),
+                    w * Point3::new(0.0, 0.0, bottle_length_m),
+                ]
+            })
+            .collect();
+        cut_neighbour_travel_m(calibration, &target.centre_in_world, &axes, reach_m)
+    }
+
     /// What this sighting means for the pick, or `None` when it holds no target part.
     pub fn percept(&self, station: &StationModel<'_>) -> Option<Percept> {
         let target = self.target.as_ref()?;
@@ -253,6 +286,36 @@ pub fn surroundings_travel_m(
     None
 }
 
+/// The belt travel (m, downstream along +x) that brings `part` (a point on an end face) to
+/// where `calibration`'s optical axis meets its end-face plane, when one of the `cut_axes`
+/// (bottles' axes, base to top, world, each the fit of a box the frame's border cuts) comes
+/// within `reach_m` of the part's axis at a point upstream of it (the belt can only carry such
+/// a bottle further into view); `None` when none does, or the part is at the axis already.
+pub fn cut_neighbour_travel_m(
+    calibration: &CameraCalibration,
+    part: &Point3<f64>,
+    cut_axes: &[[Point3<f64>; 2]],
+    reach_m: f64,
+) -> Option<f64> {
+    let near_upstream = cut_axes.iter().any(|[a, b]| {
+        // The point of the axis nearest the part's, in the belt's plane.
+        let (dx, dy) = (b.x - a.x, b.y - a.y);
+        let length_sq = dx * dx + dy * dy;
+        let t = if length_sq > 0.0 {
+            (((part.x - a.x) * dx + (part.y - a.y) * dy) / length_sq).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        let (x, y) = (a.x + t * dx, a.y + t * dy);
+        x < part.x && (x - part.x).hypot(y - part.y) < reach_m
+    });
+    if !near_upstream {
+        return None;
+    }
+    let travel_m = travel_to_axis_m(calibration, part)?;
+    (travel_m >= MIN_JOG_M).then_some(travel_m)
+}
+
 /// The borders of a `frame_px` large frame that `box_px` reaches within
 /// [`BORDER_TOUCH_SHARE`] of (a box cut by the image's edge), as inward unit normals.
 pub(super) fn touched_borders(box_px: &[f64; 4], frame_px: (u32, u32)) -> Vec<[f64; 2]> {
@@ -275,7 +338,7 @@ mod tests {
 
     use nalgebra::{Point3, Vector3};
 
-    use super::{BeltBand, Surroundings, surroundings_travel_m};
+    use super::{BeltBand, MIN_JOG_M, Surroundings, cut_neighbour_travel_m, surroundings_travel_m};
     use crate::camera::CameraCalibration;
     use crate::rng::SimRng;
 
@@ -374,5 +437,103 @@ mod tests {
             in_view_already >= 100,
             "only {in_view_already} already in view"
         );
+    }
+
+    /// Bottles cut by the frame's border, standing or lying at any yaw, near parts seen by
+    /// cameras over the whole envelope: the belt is jogged exactly when a bottle's axis comes
+    /// within the reach of the part's axis at a point upstream of it (the nearest of 400 points
+    /// along the axis, brute force), by the travel that brings the part's end face to the
+    /// optical axis.
+    #[test]
+    fn a_cut_bottle_upstream_within_reach_brings_the_part_to_the_optical_axis() {
+        let mut rng = SimRng::new(2431);
+        let (mut jogged, mut near_but_centred, mut left) = (0, 0, 0);
+        for case in 0..600 {
+            let belt_top = rng.range(0.5, 0.9);
+            let station = Point3::new(rng.range(-0.1, 0.2), rng.range(-0.6, -0.3), belt_top);
+            let (tilt, heading) = (rng.range(0.0, 35f64.to_radians()), rng.range(-PI, PI));
+            let up = Vector3::new(
+                tilt.sin() * heading.cos(),
+                tilt.sin() * heading.sin(),
+                tilt.cos(),
+            );
+            let eye = station + up * rng.range(0.35, 1.2);
+            let roll = rng.range(-PI, PI);
+            let right = Vector3::new(roll.cos(), roll.sin(), 0.0);
+            let Some(pose) = CameraCalibration::look_at(&eye, &station, &right) else {
+                continue;
+            };
+            let (w, h) = [(640, 480), (1280, 960), (2048, 1536)][case % 3];
+            let fov = rng.range(35f64, 80.0).to_radians();
+            let calibration = CameraCalibration::from_fov(w, h, fov, pose, belt_top);
+            let part = Point3::new(
+                station.x + rng.range(-0.3, 0.1),
+                station.y + rng.range(-0.1, 0.1),
+                belt_top + rng.range(0.03, 0.12),
+            );
+            let reach = rng.range(0.06, 0.14);
+            let length = rng.range(0.1, 0.25);
+            let axes: Vec<[Point3<f64>; 2]> = (0..1 + rng.below(3))
+                .map(|_| {
+                    let (a, d) = (rng.range(-PI, PI), rng.range(0.0, 0.3));
+                    let base = Point3::new(part.x + d * a.cos(), part.y + d * a.sin(), belt_top);
+                    let top = if rng.uniform() < 0.5 {
+                        base + Vector3::z() * length
+                    } else {
+                        let yaw = rng.range(-PI, PI);
+                        base + Vector3::new(yaw.cos(), yaw.sin(), 0.0) * length
+                    };
+                    [base, top]
+                })
+                .collect();
+            // The nearest of 400 points along each axis, in the belt's plane.
+            let nearest: Vec<(f64, f64)> = axes
+                .iter()
+                .map(|[a, b]| {
+                    (0..=400)
+                        .map(|k| a + (b - a) * (f64::from(k) / 400.0))
+                        .map(|q| ((q.x - part.x).hypot(q.y - part.y), q.x - part.x))
+                        .fold((f64::INFINITY, 0.0), |m, v| if v.0 < m.0 { v } else { m })
+                })
+                .collect();
+            // Too near a boundary for 400 samples to tell: drawn again.
+            if nearest
+                .iter()
+                .any(|&(d, dx)| (d - reach).abs() < 2e-3 || dx.abs() < 2e-3)
+            {
+                continue;
+            }
+            let wanted = nearest.iter().any(|&(d, dx)| d < reach && dx < 0.0);
+            let face = calibration.with_end_face_height(part.z);
+            let to_axis = face
+                .pixel_to_plane(calibration.cx_px, calibration.cy_px)
+                .map_or(f64::NAN, |p| p.x - part.x);
+            match cut_neighbour_travel_m(&calibration, &part, &axes, reach) {
+                Some(travel) => {
+                    jogged += 1;
+                    assert!(wanted, "case {case}: jogged for no bottle near upstream");
+                    // Where the line from the eye through the station (the optical axis)
+                    // meets the part's end-face plane.
+                    let forward = (station - eye).normalize();
+                    let meet = eye + forward * ((part.z - eye.z) / forward.z);
+                    assert!(
+                        (part.x + travel - meet.x).abs() < 1e-6,
+                        "case {case}: the part ends {} m from the axis",
+                        part.x + travel - meet.x
+                    );
+                }
+                None if wanted => {
+                    assert!(to_axis < MIN_JOG_M, "case {case}: not jogged");
+                    near_but_centred += 1;
+                }
+                None => left += 1,
+            }
+        }
+        assert!(jogged >= 100, "only {jogged} jogged");
+        assert!(
+            near_but_centred >= 20,
+            "only {near_but_centred} at the axis already"
+        );
+        assert!(left >= 100, "only {left} left alone");
     }
 }

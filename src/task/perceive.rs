@@ -53,7 +53,18 @@ impl Sorter<'_> {
                         .border_jog_m(&rig.calibration, frame_px, belt_top_z)
                         .or_else(|| {
                             let around = surroundings_to_see(model, &sighting, belt_top_z)?;
-                            sighting.surroundings_jog_m(&rig.calibration, frame_px, &around)
+                            sighting
+                                .surroundings_jog_m(&rig.calibration, frame_px, &around)
+                                .or_else(|| {
+                                    let length_m = model.scenario().bottle.height_m;
+                                    let (calibration, reach_m) = (&rig.calibration, around.reach_m);
+                                    sighting.cut_neighbour_jog_m(
+                                        calibration,
+                                        frame_px,
+                                        reach_m,
+                                        length_m,
+                                    )
+                                })
                         });
                     let Some(jog_m) = jog else {
                         break;
