@@ -18,7 +18,7 @@
 //!   bottle's radius) are one bottle: the better explained one stays.
 
 use image::RgbImage;
-use nalgebra::{Isometry3, Point3, Vector3};
+use nalgebra::{Isometry3, Point3};
 
 use super::bottle_fit::{BottleFitter, BottlePose};
 use super::bottle_outline::Cells;
@@ -338,23 +338,6 @@ impl BottleFitter {
         })
     }
 
-    /// The bottle's axis in the world, base to top.
-    fn axis_segment(&self, pose: &BottlePose) -> (Point3<f64>, Point3<f64>) {
-        let w = &pose.world_from_bottle;
-        (
-            w * Point3::origin(),
-            w * Point3::new(0.0, 0.0, self.height_m),
-        )
-    }
-
-    /// Whether two poses' bodies would pass through each other: their axes come nearer than a
-    /// radius.
-    pub(super) fn interpenetrate(&self, a: &BottlePose, b: &BottlePose) -> bool {
-        let (a0, a1) = self.axis_segment(a);
-        let (b0, b1) = self.axis_segment(b);
-        segments_distance(&a0, &a1, &b0, &b1) < self.radius_m
-    }
-
     /// The bottles of one frame: each detector box `boxes[k]` (its detection index and box,
     /// calibration pixels) fitted on the `belt` clear of its measured tubes, its poses checked
     /// against the pixels of `e` (a box no pose explains searched by the pixels), and sightings
@@ -441,30 +424,7 @@ impl BottleFitter {
             };
             fitted.push((k, poses, explained));
         }
-        // Explained boxes first, then the rest, each in the detector's order (its confidence).
-        let mut order: Vec<usize> = (0..fitted.len()).collect();
-        order.sort_by_key(|&k| !fitted[k].2);
-        let mut sightings: Vec<BottleSighting> = Vec::new();
-        let mut holder = vec![0usize; boxes.len()];
-        for k in order {
-            let (_, poses, _) = &fitted[k];
-            let same = poses.first().and_then(|p| {
-                sightings
-                    .iter()
-                    .position(|s| s.poses.iter().any(|q| self.interpenetrate(p, q)))
-            });
-            match same {
-                Some(s) => holder[k] = s,
-                None => {
-                    holder[k] = sightings.len();
-                    sightings.push(BottleSighting {
-                        detection: boxes[k].0,
-                        poses: poses.clone(),
-                    });
-                }
-            }
-        }
-        (sightings, holder)
+        self.merge_sightings(boxes, &fitted)
     }
 }
 
@@ -494,31 +454,6 @@ pub(super) fn segment_distance(p: &[f64; 2], a: &[f64; 2], b: &[f64; 2]) -> f64 
         0.0
     };
     (p[0] - a[0] - t * dx).hypot(p[1] - a[1] - t * dy)
-}
-
-/// Distance between the segments `a0`-`a1` and `b0`-`b1`, m.
-fn segments_distance(
-    a0: &Point3<f64>,
-    a1: &Point3<f64>,
-    b0: &Point3<f64>,
-    b1: &Point3<f64>,
-) -> f64 {
-    // Sampled finely enough for a decision at a bottle's radius.
-    let steps = 40;
-    let at = |p: &Point3<f64>, q: &Point3<f64>, t: f64| p + (q - p) * t;
-    let mut best = f64::INFINITY;
-    for i in 0..=steps {
-        let p = at(a0, a1, f64::from(i) / f64::from(steps));
-        let d: Vector3<f64> = b1 - b0;
-        let l2 = d.norm_squared();
-        let t = if l2 > 0.0 {
-            ((p - b0).dot(&d) / l2).clamp(0.0, 1.0)
-        } else {
-            0.0
-        };
-        best = best.min((p - at(b0, b1, t)).norm());
-    }
-    best
 }
 
 /// The bottle sightings of a look: `boxes` (the bottle detections' indices in `detections` and

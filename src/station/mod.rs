@@ -11,6 +11,7 @@ pub mod belt_frame;
 mod bore_floor;
 mod bottle_evidence;
 pub mod bottle_fit;
+mod bottle_merge;
 mod bottle_outline;
 mod bottle_unboxed;
 pub mod camera_percept;
