@@ -1,5 +1,5 @@
-//! One bottle seen in several detector boxes: the sightings of a frame merged, each box's
-//! reading kept ([`BottleFitter::merge_sightings`]).
+//! One bottle seen in several detector boxes: the sightings of a frame merged, each explained
+//! box's best reading kept ([`BottleFitter::merge_sightings`]).
 
 use nalgebra::{Point3, Vector3};
 
@@ -38,11 +38,11 @@ impl BottleFitter {
     /// The sightings of one frame from its fitted boxes: `fitted[k]` is box `boxes[k]`'s poses
     /// (best first) and whether they explain the box. Explained boxes come first, then the rest,
     /// each in the detector's order (its confidence). A box whose best pose passes through a
-    /// pose of a sighting already made is taken for that bottle: when its fit explained it, its
-    /// poses join that sighting's as further readings (the first stays the best), so that a
-    /// second bottle standing where one reading of the first lies is still kept clear of; a box
-    /// no pose explains (a fragment of a bottle) adds nothing. Returns the sightings and, per
-    /// box, the index of the sighting that holds it.
+    /// pose of a sighting already made is taken for that bottle: when its fit explained it, that
+    /// best pose joins the sighting's poses as a further reading (after them: the sighting's
+    /// first stays its best), so that a second bottle standing where one reading of the first
+    /// lies is still kept clear of; a box no pose explains (a fragment of a bottle) adds
+    /// nothing. Returns the sightings and, per box, the index of the sighting that holds it.
     pub(super) fn merge_sightings(
         &self,
         boxes: &[(usize, [f64; 4])],
@@ -61,9 +61,8 @@ impl BottleFitter {
                     .position(|s| s.poses.iter().any(|q| self.interpenetrate(p, q)))
             });
             match same {
-                // Taken for a bottle already seen: its poses join that sighting's as further
-                // readings (the first stays the best), so that a second bottle standing where
-                // one reading of the first lies is still kept clear of.
+                // Taken for a bottle already seen: an explained box's best pose joins that
+                // sighting's poses as a further reading, unless the sighting holds it already.
                 Some(s) => {
                     holder[k] = s;
                     for p in poses.iter().take(usize::from(*explained)) {
