@@ -1,5 +1,5 @@
 use super::*;
-use crate::scenario::Scenario;
+use crate::scenario::{ConveyorSection, Scenario};
 
 fn paper() -> Scenario {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/paper_50.toml");
@@ -96,6 +96,20 @@ fn a_lying_bottle_is_a_rectangle_not_a_disc() {
     assert!((lying.distance_to_point([0.06, 0.15]) - 0.05).abs() < 1e-12);
 }
 
+/// Asserts that `print` lies across the belt within its edges (draw `trial`).
+fn assert_on_belt(print: &Footprint, belt: &ConveyorSection, trial: u64) {
+    let [y0, y1] = print.y_extent();
+    let half = belt.width_m / 2.0;
+    assert!(
+        y0 >= belt.belt_center_m[1] - half - 1e-12,
+        "{trial}: off the belt"
+    );
+    assert!(
+        y1 <= belt.belt_center_m[1] + half + 1e-12,
+        "{trial}: off the belt"
+    );
+}
+
 /// Draws a scenario over the space the keys allow: counts 1-4, near gaps 0-40 mm, distance
 /// ranges 60-250 mm, any lying fraction, lateral offsets up to the belt's edge.
 fn random_scenario(rng: &mut SimRng) -> Scenario {
@@ -150,16 +164,7 @@ fn placements_keep_every_constraint_over_random_scenarios() {
             .collect();
         for (i, (print, placement)) in prints.iter().zip(&bottles).enumerate() {
             lying += usize::from(placement.lying);
-            let [y0, y1] = print.y_extent();
-            let half = belt.width_m / 2.0;
-            assert!(
-                y0 >= belt.belt_center_m[1] - half - 1e-12,
-                "{trial}: off the belt"
-            );
-            assert!(
-                y1 <= belt.belt_center_m[1] + half + 1e-12,
-                "{trial}: off the belt"
-            );
+            assert_on_belt(print, belt, trial);
             let gap = part_disc.gap(print);
             // Check against the brute force too, so that a wrong gap cannot pass both.
             assert!((gap - sampled_gap(&part_disc, print)).abs() < 1e-3);
@@ -283,7 +288,7 @@ fn a_crowded_station_is_laid_out_by_drawing_the_layout_again() {
     b.near_gap_range_m = Some([0.0, 0.01]);
     b.distance_range_m = [0.08, 0.24];
     b.lying_fraction = 0.5;
-    let belt = scenario.conveyor.clone();
+    let belt = &scenario.conveyor;
     let offset = scenario.parts.max_lateral_offset_m;
     let mut rng = SimRng::new(2417);
     for trial in 0..400 {
@@ -317,16 +322,7 @@ fn a_crowded_station_is_laid_out_by_drawing_the_layout_again() {
                     "{trial}: bottle {i} {gap} m from the part"
                 );
             }
-            let [y0, y1] = print.y_extent();
-            let half = belt.width_m / 2.0;
-            assert!(
-                y0 >= belt.belt_center_m[1] - half - 1e-12,
-                "{trial}: off the belt"
-            );
-            assert!(
-                y1 <= belt.belt_center_m[1] + half + 1e-12,
-                "{trial}: off the belt"
-            );
+            assert_on_belt(print, belt, trial);
             for other in &prints[..i] {
                 assert!(other.gap(print) > CLEARANCE_M, "{trial}: bottles overlap");
             }

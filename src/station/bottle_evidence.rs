@@ -286,12 +286,7 @@ impl BottleFitter {
             )
             .collect();
         for &(lying, yaw) in &hypotheses {
-            let mid_z = belt_top_z_m
-                + if lying {
-                    self.radius_m
-                } else {
-                    self.height_m / 2.0
-                };
+            let mid_z = self.mid_z(lying, belt_top_z_m);
             let Ok(at) = self
                 .calibration
                 .pixel_to_height(centre[0], centre[1], mid_z)

@@ -267,7 +267,7 @@ impl BottleFitter {
 
     /// The world z of the middle of a standing (`lying` false) or lying bottle
     /// on a belt whose top is at `belt_top_z_m`.
-    fn mid_z(&self, lying: bool, belt_top_z_m: f64) -> f64 {
+    pub(super) fn mid_z(&self, lying: bool, belt_top_z_m: f64) -> f64 {
         belt_top_z_m
             + if lying {
                 self.radius_m

@@ -342,6 +342,30 @@ mod tests {
     use crate::camera::CameraCalibration;
     use crate::rng::SimRng;
 
+    /// A camera drawn over the envelope, looking at `station` (on the belt's top): optical
+    /// axis up to 35 degrees from vertical in any direction, 0.35-1.2 m away, any roll, a
+    /// 35-80 degree lens on one of three frame sizes (by `case`); with its frame and its eye.
+    fn camera_over(
+        rng: &mut SimRng,
+        station: &Point3<f64>,
+        case: usize,
+    ) -> Option<(CameraCalibration, (u32, u32), Point3<f64>)> {
+        let (tilt, heading) = (rng.range(0.0, 35f64.to_radians()), rng.range(-PI, PI));
+        let up = Vector3::new(
+            tilt.sin() * heading.cos(),
+            tilt.sin() * heading.sin(),
+            tilt.cos(),
+        );
+        let eye = station + up * rng.range(0.35, 1.2);
+        let roll = rng.range(-PI, PI);
+        let right = Vector3::new(roll.cos(), roll.sin(), 0.0);
+        let pose = CameraCalibration::look_at(&eye, station, &right)?;
+        let (w, h) = [(640, 480), (1280, 960), (2048, 1536)][case % 3];
+        let fov = rng.range(35f64, 80.0).to_radians();
+        let calibration = CameraCalibration::from_fov(w, h, fov, pose, station.z);
+        Some((calibration, (w, h), eye))
+    }
+
     /// Whether every point on the circle of `radius` around `part` (brought in to the belt's
     /// edges), carried `travel` downstream, at `upstream_only` its upstream half, is in view.
     fn circle_in_view(
@@ -376,21 +400,9 @@ mod tests {
             let belt_top = rng.range(0.5, 0.9);
             let (belt_y, half) = (rng.range(-0.6, -0.3), rng.range(0.12, 0.25));
             let station = Point3::new(rng.range(-0.1, 0.2), belt_y, belt_top);
-            let (tilt, heading) = (rng.range(0.0, 35f64.to_radians()), rng.range(-PI, PI));
-            let up = Vector3::new(
-                tilt.sin() * heading.cos(),
-                tilt.sin() * heading.sin(),
-                tilt.cos(),
-            );
-            let eye = station + up * rng.range(0.35, 1.2);
-            let roll = rng.range(-PI, PI);
-            let right = Vector3::new(roll.cos(), roll.sin(), 0.0);
-            let Some(pose) = CameraCalibration::look_at(&eye, &station, &right) else {
+            let Some((calibration, (w, h), _)) = camera_over(&mut rng, &station, case) else {
                 continue;
             };
-            let (w, h) = [(640, 480), (1280, 960), (2048, 1536)][case % 3];
-            let fov = rng.range(35f64, 80.0).to_radians();
-            let calibration = CameraCalibration::from_fov(w, h, fov, pose, belt_top);
             let frame = (f64::from(w), f64::from(h));
             let s = Surroundings {
                 reach_m: rng.range(0.06, 0.14),
@@ -451,21 +463,9 @@ mod tests {
         for case in 0..600 {
             let belt_top = rng.range(0.5, 0.9);
             let station = Point3::new(rng.range(-0.1, 0.2), rng.range(-0.6, -0.3), belt_top);
-            let (tilt, heading) = (rng.range(0.0, 35f64.to_radians()), rng.range(-PI, PI));
-            let up = Vector3::new(
-                tilt.sin() * heading.cos(),
-                tilt.sin() * heading.sin(),
-                tilt.cos(),
-            );
-            let eye = station + up * rng.range(0.35, 1.2);
-            let roll = rng.range(-PI, PI);
-            let right = Vector3::new(roll.cos(), roll.sin(), 0.0);
-            let Some(pose) = CameraCalibration::look_at(&eye, &station, &right) else {
+            let Some((calibration, _, eye)) = camera_over(&mut rng, &station, case) else {
                 continue;
             };
-            let (w, h) = [(640, 480), (1280, 960), (2048, 1536)][case % 3];
-            let fov = rng.range(35f64, 80.0).to_radians();
-            let calibration = CameraCalibration::from_fov(w, h, fov, pose, belt_top);
             let part = Point3::new(
                 station.x + rng.range(-0.3, 0.1),
                 station.y + rng.range(-0.1, 0.1),
@@ -504,18 +504,15 @@ mod tests {
                 continue;
             }
             let wanted = nearest.iter().any(|&(d, dx)| d < reach && dx < 0.0);
-            let face = calibration.with_end_face_height(part.z);
-            let to_axis = face
-                .pixel_to_plane(calibration.cx_px, calibration.cy_px)
-                .map_or(f64::NAN, |p| p.x - part.x);
+            // Where the line from the eye through the station (the optical axis) meets the
+            // part's end-face plane.
+            let forward = (station - eye).normalize();
+            let meet = eye + forward * ((part.z - eye.z) / forward.z);
+            let to_axis = meet.x - part.x;
             match cut_neighbour_travel_m(&calibration, &part, &axes, reach) {
                 Some(travel) => {
                     jogged += 1;
                     assert!(wanted, "case {case}: jogged for no bottle near upstream");
-                    // Where the line from the eye through the station (the optical axis)
-                    // meets the part's end-face plane.
-                    let forward = (station - eye).normalize();
-                    let meet = eye + forward * ((part.z - eye.z) / forward.z);
                     assert!(
                         (part.x + travel - meet.x).abs() < 1e-6,
                         "case {case}: the part ends {} m from the axis",

@@ -49,22 +49,22 @@ impl Sorter<'_> {
                 for _ in 0..MAX_BORDER_JOGS {
                     let frame_px = (rig.width_px, rig.height_px);
                     let belt_top_z = data.cell.belt_top_z;
+                    let calibration = &rig.calibration;
+                    let around = surroundings_to_see(model, &sighting, belt_top_z);
+                    let bottle_length_m = model.scenario().bottle.height_m;
                     let jog = sighting
-                        .border_jog_m(&rig.calibration, frame_px, belt_top_z)
+                        .border_jog_m(calibration, frame_px, belt_top_z)
                         .or_else(|| {
-                            let around = surroundings_to_see(model, &sighting, belt_top_z)?;
-                            sighting
-                                .surroundings_jog_m(&rig.calibration, frame_px, &around)
-                                .or_else(|| {
-                                    let length_m = model.scenario().bottle.height_m;
-                                    let (calibration, reach_m) = (&rig.calibration, around.reach_m);
-                                    sighting.cut_neighbour_jog_m(
-                                        calibration,
-                                        frame_px,
-                                        reach_m,
-                                        length_m,
-                                    )
-                                })
+                            sighting.surroundings_jog_m(calibration, frame_px, around.as_ref()?)
+                        })
+                        .or_else(|| {
+                            let reach_m = around.as_ref()?.reach_m;
+                            sighting.cut_neighbour_jog_m(
+                                calibration,
+                                frame_px,
+                                reach_m,
+                                bottle_length_m,
+                            )
                         });
                     let Some(jog_m) = jog else {
                         break;
