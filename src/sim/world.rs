@@ -420,4 +420,27 @@ mod tests {
         world.set_solver_schedule(full, 4, 0.01);
         assert_eq!(world.next_solver_iterations(), 4);
     }
+
+    #[test]
+    fn every_robot_collider_has_its_contacts_rebuilt_every_step() {
+        // Rapier never recycles a hooked collider's contacts (see
+        // `sim::contacts::tests::a_hooked_body_passing_clear_of_a_light_one_leaves_it_standing`).
+        let world = ball_beyond_finger(0.1, false);
+        let robot: Vec<&Collider> = world
+            .physics
+            .colliders
+            .iter()
+            .map(|(_, c)| c)
+            .filter(|c| c.user_data == Tag::Robot.bits())
+            .collect();
+        assert!(robot.len() > 6, "{} robot colliders", robot.len());
+        for collider in robot {
+            assert!(
+                collider
+                    .active_hooks()
+                    .contains(ActiveHooks::MODIFY_SOLVER_CONTACTS),
+                "a robot collider's contacts are recycled"
+            );
+        }
+    }
 }
