@@ -428,18 +428,10 @@ impl SimArm {
                     if name.starts_with("finger") {
                         // Rubber pads grip with their own coefficient, whatever they touch.
                         collider.set_friction_combine_rule(CoefficientCombineRule::Max);
+                        // The pads' contacts go through the contact hook, where the pads'
+                        // stiction (`sim::PadStiction`) holds what they press.
+                        collider.set_active_hooks(ActiveHooks::MODIFY_SOLVER_CONTACTS);
                     }
-                    // Contacts of a hooked collider are never recycled: rapier otherwise keeps a
-                    // pair's contact points, normal and lever arms frozen in world space while
-                    // the pair's relative pose moves less than 5 cm, and tracks its separation
-                    // along the frozen normal by the frozen points' motion. A held part: as the
-                    // arm turned the gripper (up to 11 deg before a refresh) the pads' squeeze
-                    // pushed along stale normals, twisted the part and walked it out of the
-                    // jaws. A link passing a light body: the gripper housing descending past a
-                    // standing bottle's shoulder, 18 mm from it, had its frozen point sink below
-                    // the stale normal's plane and knocked the bottle over without touching it.
-                    // Every robot contact is rebuilt every step instead.
-                    collider.set_active_hooks(ActiveHooks::MODIFY_SOLVER_CONTACTS);
                     collider.user_data = Tag::Robot as u128;
                     collider.set_collision_groups(super::groups::robot());
                 }

@@ -79,19 +79,21 @@ impl CellData {
         let end_x = belt.belt_center_m[0] + belt.length_m / 2.0;
         let travel_m = (end_x - start.translation.x).max(0.0);
         let limit_s = self.cell.world.time_s() + travel_m / belt.speed_m_s + FALL_MARGIN_S;
+        let at = |data: &Self| {
+            let at = data
+                .cell
+                .body_pose(body)
+                .map(|p| p.translation.vector)
+                .unwrap_or_default();
+            format!("it is at x {:.3}, y {:.3}, z {:.3} m", at.x, at.y, at.z)
+        };
         while self.bin_holding(part) != Some(collector) {
             if self.cell.world.time_s() > limit_s {
-                let at = self
-                    .cell
-                    .body_pose(body)
-                    .map(|p| p.translation.vector)
-                    .unwrap_or_default();
                 return fail(
                     FailureReason::Dropped,
                     format!(
-                        "let through as unpickable, the part did not reach the collector \
-                         (it is at x {:.3}, y {:.3}, z {:.3} m)",
-                        at.x, at.y, at.z
+                        "let through as unpickable, the part did not reach the collector ({})",
+                        at(self)
                     ),
                 );
             }
@@ -102,7 +104,10 @@ impl CellData {
         if self.bin_holding(part) != Some(collector) {
             return fail(
                 FailureReason::Dropped,
-                "let through as unpickable, the part bounced out of the collector",
+                format!(
+                    "let through as unpickable, the part bounced out of the collector ({})",
+                    at(self)
+                ),
             );
         }
         Ok(())
