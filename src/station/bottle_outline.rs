@@ -258,35 +258,38 @@ fn fill_triangle(
         return;
     }
     let sign = area.signum();
-    // Per edge p -> q: p, q - p, and whether the triangle lies left of the edge's crossing of a
-    // row (the crossing an upper bound) or right.
+    // Per edge p -> q: p, q - p, its run per unit of rise (where it crosses a row: not finite
+    // for an edge along a row), and whether the triangle lies left of that crossing (the
+    // crossing an upper bound) or right.
     let edges = [(a, b), (b, c), (c, a)].map(|(p, q)| {
         let (run, rise) = (q[0] - p[0], q[1] - p[1]);
-        (*p, run, rise, rise * sign > 0.0)
+        (*p, run, rise, run / rise, rise * sign > 0.0)
     });
+    // A narrow box's rows are searched whole; a wide one's narrowed first.
+    let narrow = i1 - i0 <= NARROW_CELLS;
     for j in j0..=j1 {
         let y = j as f64;
         // Per edge, the part of its test that is the row's.
-        let along = edges.map(|(p, run, _, _)| run * (y - p[1]));
+        let along = edges.map(|(p, run, _, _, _)| run * (y - p[1]));
         let passes = |i: i64| {
             let x = i as f64;
             edges
                 .iter()
                 .zip(&along)
-                .all(|((p, _, rise, _), t)| (t - rise * (x - p[0])) * sign >= 0.0)
+                .all(|((p, _, rise, _, _), t)| (t - rise * (x - p[0])) * sign >= 0.0)
         };
         let (mut lo, mut hi) = (i0, i1);
-        // A narrow box's row is searched whole; a wide one's narrowed first.
-        for (p, run, rise, upper) in edges.into_iter().filter(|_| i1 - i0 > NARROW_CELLS) {
-            // An edge along the row (no rise) bounds nothing: its crossing is not finite.
-            let x = p[0] + run / rise * (y - p[1]);
-            if !x.is_finite() {
-                continue;
-            }
-            if upper {
-                hi = hi.min(floor_i(x).saturating_add(1));
-            } else {
-                lo = lo.max(ceil_i(x).saturating_sub(1));
+        if !narrow {
+            for (p, _, _, run_per_rise, upper) in edges {
+                let x = p[0] + run_per_rise * (y - p[1]);
+                if !x.is_finite() {
+                    continue;
+                }
+                if upper {
+                    hi = hi.min(floor_i(x).saturating_add(1));
+                } else {
+                    lo = lo.max(ceil_i(x).saturating_sub(1));
+                }
             }
         }
         let Some(first) = (lo..=hi).find(|&i| passes(i)) else {
