@@ -67,28 +67,23 @@ fn loaded_cell(scenario: &Scenario) -> Cell {
     cell
 }
 
-/// One step of the loaded cell under each solver schedule: the world's defaults with the arm
-/// kept awake (it holds still at home, so by default its multibody sleeps: the next case), the
-/// schedule before issue 15's cut (4 free substeps, predicted contacts counted, 8 near the arm)
-/// and 8 substeps every step (the scenario's count before that, and until the pads' stiction).
+/// One step of the loaded cell under each solver schedule: the world's defaults, the schedule
+/// before issue 15's cut (4 free substeps, predicted contacts counted, 8 near the arm) and 8
+/// substeps every step (the scenario's count before that, and until the pads' stiction).
 fn step_benches<M: Measurement>(group: &mut BenchmarkGroup<'_, M>, scenario: &Scenario) {
     let schedules = [
-        ("physics_step_arm_ten_parts", None, false),
-        ("physics_step_arm_ten_parts_idle_arm_asleep", None, true),
+        ("physics_step_arm_ten_parts", None),
         (
             "physics_step_arm_ten_parts_free_4_substeps",
             Some((8, 4, f64::INFINITY)),
-            false,
         ),
         (
             "physics_step_arm_ten_parts_8_substeps",
             Some((8, 8, f64::INFINITY)),
-            false,
         ),
     ];
-    for (name, schedule, idle_sleep) in schedules {
+    for (name, schedule) in schedules {
         let mut cell = loaded_cell(scenario);
-        cell.world.set_idle_sleep(idle_sleep);
         if let Some((full, free, margin)) = schedule {
             cell.world.set_solver_schedule(full, free, margin);
         }

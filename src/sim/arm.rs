@@ -1,12 +1,15 @@
-//! The arm and gripper in the physics world: loaded from URDF as a multibody with joint motors.
+//! The arm and gripper in the physics world, loaded from URDF: every moving link a kinematic body
+//! placed by its servo's response (`sim::servo`), the fingers at the jaws' offset (`sim::jaws`).
 
 use std::collections::BTreeMap;
 use std::path::Path;
 
 use nalgebra::Isometry3;
 use rapier3d::prelude::*;
-use rapier3d_urdf::{UrdfLoaderOptions, UrdfMultibodyOptions, UrdfRobot};
+use rapier3d_urdf::{UrdfJoint, UrdfLoaderOptions, UrdfRobot};
 
+use super::jaws::{JawFinger, Jaws};
+use super::servo::{ServoDrive, ServoJoint};
 use super::urdf_graph::{tree_error, value_error};
 use super::weld::{WeldedRobot, weld_fixed_links};
 use super::{SimError, Tag, World};
@@ -19,10 +22,6 @@ pub const FINGER_JOINTS: [&str; 2] = ["finger_left_joint", "finger_right_joint"]
 pub const FINGER_LINKS: [&str; 2] = ["finger_left_Link", "finger_right_Link"];
 /// Jaw travel speed, m/s per jaw.
 pub const JAW_SPEED_M_S: f64 = 0.1;
-/// Index of a revolute joint's angle in a multibody joint's coordinates.
-const REVOLUTE_COORD: usize = 3;
-/// Index of a prismatic joint's offset in a multibody joint's coordinates.
-const PRISMATIC_COORD: usize = 0;
 
 /// Servo gains of the joint position controllers (acceleration-based, per unit inertia).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -58,10 +57,10 @@ pub struct ArmLink {
 /// Handles of the arm in a [`World`].
 #[derive(Debug, Clone)]
 pub struct SimArm {
-    joints: [MultibodyJointHandle; DOF],
-    fingers: [MultibodyJointHandle; 2],
-    finger_stops_m: [f64; 2],
-    efforts: [f32; DOF],
+    /// The servo drive's index of the link each arm joint moves.
+    joints: [usize; DOF],
+    /// The pads' separation with the jaws closed on nothing, m.
+    closed_gap_m: f64,
     flange_body: RigidBodyHandle,
     links: Vec<ArmLink>,
     world_from_base: Isometry3<f64>,
@@ -151,62 +150,115 @@ impl SimArm {
             .iter()
             .map(|j| description.joints[j.urdf_joint_index].name.clone())
             .collect();
-        let efforts_by_name: Vec<f32> = robot
-            .joints
-            .iter()
-            .map(|j| description.joints[j.urdf_joint_index].limit.effort as f32)
-            .collect();
-        let lowers_by_name: Vec<f64> = robot
-            .joints
-            .iter()
-            .map(|j| description.joints[j.urdf_joint_index].limit.lower)
-            .collect();
+        let prismatic = |j: &UrdfJoint| j.joint.locked_axes == JointAxesMask::LOCKED_PRISMATIC_AXES;
+        let revolute = |j: &UrdfJoint| j.joint.locked_axes == JointAxesMask::LOCKED_REVOLUTE_AXES;
         let physics = &mut world.physics;
-        // Self-contacts off: neighbouring links overlap at their joints by design; the planner
-        // keeps the arm clear of itself.
-        let handles = robot.insert_using_multibody_joints(
-            &mut physics.bodies,
-            &mut physics.colliders,
-            &mut physics.multibody_joints,
-            UrdfMultibodyOptions::DISABLE_SELF_CONTACTS,
-        );
-        // A joint by name: its handle and its index among the URDF's joints.
-        let find_joint = |name: &str| -> Result<(MultibodyJointHandle, usize), SimError> {
-            let index = joint_names.iter().position(|n| n == name);
-            let handle = index.and_then(|i| handles.joints[i].joint.map(|h| (h, i)));
-            handle.ok_or_else(|| SimError::MissingJoint {
-                joint: name.to_string(),
-                path: path.to_path_buf(),
+        // Every link but the root is a kinematic body, placed by the drive. Kinematic bodies
+        // never touch each other or fixed ones: the planner keeps the arm clear of itself and
+        // of the cell's fixed frame.
+        let mut bodies = Vec::with_capacity(robot.links.len());
+        let mut link_colliders = Vec::with_capacity(robot.links.len());
+        let mut masses = Vec::with_capacity(robot.links.len());
+        for link in robot.links {
+            let mut body = link.body;
+            masses.push(f64::from(body.mass()));
+            if !body.is_fixed() {
+                body.set_body_type(RigidBodyType::KinematicPositionBased, false);
+            }
+            let handle = physics.bodies.insert(body);
+            let colliders: Vec<ColliderHandle> = link
+                .colliders
+                .into_iter()
+                .map(|c| {
+                    physics
+                        .colliders
+                        .insert_with_parent(c.collider, handle, &mut physics.bodies)
+                })
+                .collect();
+            bodies.push(handle);
+            link_colliders.push(colliders);
+        }
+        let poses: Vec<Pose> = bodies
+            .iter()
+            .map(|b| {
+                physics
+                    .bodies
+                    .get(*b)
+                    .map_or(Pose::IDENTITY, |b| *b.position())
             })
+            .collect();
+        let missing = |name: &str| SimError::MissingJoint {
+            joint: name.to_string(),
+            path: path.to_path_buf(),
         };
-        let mut joints = [MultibodyJointHandle::invalid(); DOF];
-        let mut efforts = [0.0f32; DOF];
+        let find_joint = |name: &str| -> Result<&UrdfJoint, SimError> {
+            let index = joint_names.iter().position(|n| n == name);
+            index.map(|i| &robot.joints[i]).ok_or_else(|| missing(name))
+        };
+        let servos: Vec<ServoJoint> = robot
+            .joints
+            .iter()
+            .filter(|j| revolute(j))
+            .map(|j| ServoJoint::new((j.link1, j.link2), bodies[j.link2], &j.joint))
+            .collect();
+        let mut joints = [0usize; DOF];
         for (i, name) in kinematics.joints.iter().enumerate() {
-            let (handle, j) = find_joint(name)?;
-            (joints[i], efforts[i]) = (handle, efforts_by_name[j]);
+            let joint = find_joint(name)?;
+            if !revolute(joint) {
+                return Err(missing(name));
+            }
+            joints[i] = joint.link2;
         }
-        let mut fingers = [MultibodyJointHandle::invalid(); 2];
-        let mut finger_stops_m = [0.0; 2];
-        for (i, name) in FINGER_JOINTS.iter().enumerate() {
-            let (handle, j) = find_joint(name)?;
-            // The joint's lower limit: where the pad stops when the jaws close on nothing.
-            (fingers[i], finger_stops_m[i]) = (handle, lowers_by_name[j].max(0.0));
+        let mut fingers = Vec::with_capacity(2);
+        let mut range_m = [f64::NEG_INFINITY, f64::INFINITY];
+        let mut finger_mass_kg = 0.0;
+        for name in FINGER_JOINTS {
+            let joint = find_joint(name)?;
+            if !prismatic(joint) {
+                return Err(missing(name));
+            }
+            if let Some(limits) = joint.joint.limits(JointAxis::LinX) {
+                // The pad offset is the joint's coordinate: where it stops closing on nothing,
+                // and how far it opens.
+                range_m[0] = range_m[0].max(f64::from(limits.min).max(0.0));
+                range_m[1] = range_m[1].min(f64::from(limits.max));
+            }
+            finger_mass_kg += masses[joint.link2];
+            fingers.push(JawFinger {
+                parent: joint.link1,
+                child: joint.link2,
+                body: bodies[joint.link2],
+                frame1: joint.joint.local_frame1,
+                frame2: joint.joint.local_frame2,
+            });
         }
-        couple_fingers(world, &fingers);
+        if !range_m[0].is_finite() {
+            range_m[0] = 0.0;
+        }
+        if !range_m[1].is_finite() {
+            range_m[1] = 0.1;
+        }
+        let jaws = Jaws::new([fingers[0], fingers[1]], range_m, finger_mass_kg);
+        let closed_gap_m = 2.0 * jaws.stop_m();
+        world.drive = Some(ServoDrive::new(servos, jaws, poses));
         // Every URDF link with a body or a collider, in the file's order; a welded link names
         // its host's body and its own colliders.
         let mut links: Vec<(usize, ArmLink)> = Vec::new();
-        for ((own, handle), sources) in own_links.iter().zip(&handles.links).zip(&collider_sources)
+        for (((own, body), colliders), sources) in own_links
+            .iter()
+            .zip(&bodies)
+            .zip(&link_colliders)
+            .zip(&collider_sources)
         {
             let mut by_source: BTreeMap<usize, Vec<ColliderHandle>> = BTreeMap::new();
             by_source.entry(*own).or_default();
-            for (collider, source) in handle.colliders.iter().zip(sources) {
-                by_source.entry(*source).or_default().push(collider.handle);
+            for (collider, source) in colliders.iter().zip(sources) {
+                by_source.entry(*source).or_default().push(*collider);
             }
             links.extend(by_source.into_iter().map(|(source, colliders)| {
                 let link = ArmLink {
                     name: description.links[source].name.clone(),
-                    body: handle.body,
+                    body: *body,
                     colliders,
                 };
                 (source, link)
@@ -226,9 +278,7 @@ impl SimArm {
         };
         let arm = Self {
             joints,
-            fingers,
-            finger_stops_m,
-            efforts,
+            closed_gap_m,
             flange_body,
             links,
             world_from_base,
@@ -275,87 +325,60 @@ impl SimArm {
 
     /// Measured joint angles (controller convention).
     pub fn joint_positions(&self, world: &World) -> JointVector {
+        let drive = world.drive.as_ref();
         self.joints
-            .map(|handle| f64::from(joint_coord(world, handle, REVOLUTE_COORD).unwrap_or(0.0)))
+            .map(|link| drive.and_then(|d| d.state(link)).map_or(0.0, |s| s.0))
     }
 
     /// Measured finger positions: each pad's distance from the gripper's centre line.
     pub fn finger_positions_m(&self, world: &World) -> [f64; 2] {
-        self.fingers
-            .map(|handle| f64::from(joint_coord(world, handle, PRISMATIC_COORD).unwrap_or(0.0)))
+        let offset = world.drive.as_ref().map_or(0.0, |d| d.jaws.offset_m());
+        [offset; 2]
     }
 
-    /// The pads' separation with the jaws closed on nothing, m: the sum of the finger joints'
-    /// lower limits in the URDF.
+    /// The pads' separation with the jaws closed on nothing, m: twice the fingers' lower
+    /// limit in the URDF.
     pub fn closed_gap_m(&self) -> f64 {
-        self.finger_stops_m.iter().sum()
+        self.closed_gap_m
     }
 
     /// Commands the joint servos to a position and feed-forward velocity.
     pub fn command(&self, world: &mut World, q: &JointVector, qd: &JointVector) {
-        let gains = self.gains;
-        for (i, handle) in self.joints.iter().enumerate() {
-            with_joint_mut(world, *handle, |joint| {
-                joint.set_motor(
-                    JointAxis::AngX,
-                    q[i] as f32,
-                    qd[i] as f32,
-                    gains.stiffness,
-                    gains.damping,
-                );
-                joint.set_motor_max_force(JointAxis::AngX, self.efforts[i]);
-            });
+        let gains = (
+            f64::from(self.gains.stiffness),
+            f64::from(self.gains.damping),
+        );
+        let Some(drive) = world.drive.as_mut() else {
+            return;
+        };
+        for (i, &link) in self.joints.iter().enumerate() {
+            // Rounded as rapier's motor held its targets, so the response is the same.
+            let (q, qd) = (f64::from(q[i] as f32), f64::from(qd[i] as f32));
+            drive.command(link, q, qd, gains);
         }
     }
 
     /// Drives both fingers towards `pad_offset_m` from the centre line, pushing with at most
     /// `max_force_n` each: a force-limited parallel gripper.
     pub fn command_gripper(&self, world: &mut World, pad_offset_m: f64, max_force_n: f64) {
-        for handle in &self.fingers {
-            with_joint_mut(world, *handle, |joint| {
-                // Force-based so that the limit is in newtons: a stiff, well-damped servo that
-                // saturates at the force limit when the jaws are blocked by a part.
-                joint.set_motor_model(JointAxis::LinX, MotorModel::ForceBased);
-                joint.set_motor(JointAxis::LinX, pad_offset_m as f32, 0.0, 4_000.0, 120.0);
-                joint.set_motor_max_force(JointAxis::LinX, max_force_n as f32);
-            });
+        if let Some(drive) = world.drive.as_mut() {
+            drive.jaws.command(pad_offset_m, max_force_n);
         }
     }
 
     /// Places the arm at rest at `q` with the finger pads at `pad_offset_m`, as a trial's
     /// initial state (this sets the robot's state; it never moves other bodies).
     pub fn reset_to(&self, world: &mut World, q: &JointVector, pad_offset_m: f64) {
-        let targets: Vec<(usize, f32, usize)> = self
-            .joints
-            .iter()
-            .zip(q)
-            .map(|(handle, &value)| (*handle, value as f32, REVOLUTE_COORD))
-            .chain(
-                self.fingers
-                    .iter()
-                    .map(|handle| (*handle, pad_offset_m as f32, PRISMATIC_COORD)),
-            )
-            .filter_map(|(handle, value, axis)| {
-                let (_, link_id) = world.physics.multibody_joints.get(handle)?;
-                Some((link_id, value, axis))
-            })
-            .collect();
-        let physics = &mut world.physics;
-        let Some((multibody, _)) = physics.multibody_joints.get_mut(self.joints[0]) else {
+        let Some(drive) = world.drive.as_mut() else {
             return;
         };
-        let mut displacement = vec![0.0f32; multibody.ndofs()];
-        for (link_id, value, axis) in targets {
-            if let Some(link) = multibody.link(link_id) {
-                displacement[link.assembly_id()] = value - link.joint().coords()[axis];
-            }
+        for (i, &link) in self.joints.iter().enumerate() {
+            drive.reset(link, f64::from(q[i] as f32));
         }
-        multibody.apply_displacements(&displacement);
-        multibody.generalized_velocity_mut().fill(0.0);
-        multibody.forward_kinematics(&physics.bodies, true);
-        multibody.update_rigid_bodies(&mut physics.bodies, false);
+        drive.jaws.reset(pad_offset_m, 40.0);
+        drive.forward_kinematics();
+        drive.place(&mut world.physics, true);
         self.command(world, q, &[0.0; DOF]);
-        self.command_gripper(world, pad_offset_m, 40.0);
     }
 
     /// Pose of the flange in the world.
@@ -366,47 +389,6 @@ impl SimArm {
             .get(self.flange_body)
             .map(|body| pose_from_physics(body.position()))
             .unwrap_or_else(Isometry3::identity)
-    }
-}
-
-/// Couples the two finger joints so they open and close together, as a parallel gripper's jaws
-/// do through their rack and pinion.
-fn couple_fingers(world: &mut World, fingers: &[MultibodyJointHandle; 2]) {
-    let joints = &mut world.physics.multibody_joints;
-    let (Some((_, left)), Some((_, right))) = (joints.get(fingers[0]), joints.get(fingers[1]))
-    else {
-        return;
-    };
-    if let Some((multibody, _)) = joints.get_mut(fingers[0]) {
-        multibody.add_dof_coupling(MultibodyDofCoupling {
-            link1: left,
-            dof1: 0,
-            axis1: PRISMATIC_COORD,
-            link2: right,
-            dof2: 0,
-            axis2: PRISMATIC_COORD,
-            coeff: 1.0,
-            offset: 0.0,
-        });
-    }
-}
-
-/// Coordinate `axis` of a multibody joint, if the joint exists.
-fn joint_coord(world: &World, handle: MultibodyJointHandle, axis: usize) -> Option<f32> {
-    let (multibody, link) = world.physics.multibody_joints.get(handle)?;
-    Some(multibody.link(link)?.joint().coords()[axis])
-}
-
-/// Applies `edit` to a multibody joint's description, if the joint exists.
-fn with_joint_mut(
-    world: &mut World,
-    handle: MultibodyJointHandle,
-    edit: impl FnOnce(&mut GenericJoint),
-) {
-    if let Some((multibody, link)) = world.physics.multibody_joints.get_mut(handle)
-        && let Some(link) = multibody.link_mut(link)
-    {
-        edit(&mut link.joint.data);
     }
 }
 

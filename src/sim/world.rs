@@ -3,8 +3,7 @@
 use rapier3d::prelude::*;
 
 use super::Tag;
-use super::idle::IdleArm;
-use super::limits::LimitGate;
+use super::servo::ServoDrive;
 use crate::scenario::PhysicsSection;
 
 /// Solver substeps while no robot collider is within [`CONTACT_MARGIN_M`] of a moving body: the
@@ -79,8 +78,8 @@ pub struct World {
     pub physics: PhysicsWorld,
     params: WorldParams,
     steps: u64,
-    idle: IdleArm,
-    limits: LimitGate,
+    /// The arm's joints and jaws, integrated by their servo laws, placing the arm's links.
+    pub(super) drive: Option<ServoDrive>,
 }
 
 impl World {
@@ -121,27 +120,8 @@ impl World {
             physics,
             params,
             steps: 0,
-            idle: IdleArm::new(true),
-            limits: LimitGate::new(true),
+            drive: None,
         }
-    }
-
-    /// Whether the arm's multibody sleeps while it holds still with nothing near it (on by
-    /// default; see [`crate::sim::IDLE_STEPS`]). Turning it off wakes the arm at the next step.
-    pub fn set_idle_sleep(&mut self, enabled: bool) {
-        self.idle.set_enabled(enabled);
-    }
-
-    /// Whether multibody joint limits are handed to the solver only near a limit (on by
-    /// default; see [`crate::sim::LIMIT_MARGIN_RAD`]). Off, every declared limit is on in every
-    /// step, as rapier has it.
-    pub fn set_limit_gating(&mut self, enabled: bool) {
-        self.limits.enabled = enabled;
-    }
-
-    /// Whether the arm's multibody sleeps now.
-    pub fn arm_asleep(&self) -> bool {
-        self.idle.asleep()
     }
 
     /// The parameters the world was built with.
@@ -189,11 +169,12 @@ impl World {
     /// is, and its mass matrix is most of a step's cost. A new command or a body coming near
     /// wakes it before the step that needs it.
     pub fn step_with_hooks(&mut self, hooks: &dyn PhysicsHooks) {
-        let clear = !self.robot_contacts_moving_body(f32::INFINITY);
-        self.idle.update(&mut self.physics, clear);
-        self.limits
-            .update(&mut self.physics.multibody_joints, self.params.dt_s as f32);
-        self.physics.integration_parameters.num_solver_iterations = self.next_solver_iterations();
+        let substeps = self.next_solver_iterations();
+        if let Some(drive) = self.drive.as_mut() {
+            drive.advance(&self.physics, self.params.dt_s, substeps);
+            drive.place(&mut self.physics, false);
+        }
+        self.physics.integration_parameters.num_solver_iterations = substeps;
         self.physics.step_with_events(hooks, &());
         self.steps += 1;
     }
@@ -296,11 +277,9 @@ mod tests {
         crate::scenario::RobotSection::default().home_q_rad
     }
 
-    /// The arm at home under gravity with its jaws open as the cell puts them, held; with the
-    /// idle sleep on or off.
-    fn held_arm(sleep: bool) -> (World, SimArm) {
+    /// The arm at home under gravity with its jaws open as the cell puts them, held.
+    fn held_arm() -> (World, SimArm) {
         let mut world = World::new(WorldParams::default());
-        world.set_idle_sleep(sleep);
         let arm = match SimArm::load_builtin(&mut world, Isometry3::translation(0.0, 0.0, 0.6)) {
             Ok(arm) => arm,
             Err(e) => panic!("{e}"),
@@ -311,91 +290,58 @@ mod tests {
     }
 
     #[test]
-    fn an_idle_arm_sleeps_and_wakes_where_it_would_have_been() {
-        let (mut asleep, arm) = held_arm(true);
-        let (mut awake, _) = held_arm(false);
-        let q = home_q();
-        let bits = |world: &World| {
-            let q = arm.joint_positions(world);
-            let pads = arm.finger_positions_m(world);
-            (q.map(f64::to_bits), pads.map(f64::to_bits))
-        };
-        let mut slept = 0;
-        for _ in 0..240 {
-            for world in [&mut asleep, &mut awake] {
-                arm.command(world, &q, &[0.0; 6]);
-                arm.command_gripper(world, 0.045, 40.0);
-                world.step();
+    fn the_links_follow_the_joints_and_the_jaws_their_command() {
+        let (mut world, arm) = held_arm();
+        let start = home_q();
+        let kinematics = arm.kinematics().model.clone();
+        let sign = |i: usize| if i % 2 == 0 { 1.0 } else { -1.0 };
+        // Each joint along a smooth 0.2 rad move over a second, then held; the jaws close to
+        // 20 mm.
+        for step in 0..360 {
+            let t = ((step + 1) as f64 * world.params().dt_s).min(1.0);
+            let s = 0.5 - 0.5 * (std::f64::consts::PI * t).cos();
+            let ds = 0.5 * std::f64::consts::PI * (std::f64::consts::PI * t).sin();
+            let q: [f64; 6] = std::array::from_fn(|i| start[i] + 0.2 * sign(i) * s);
+            let qd: [f64; 6] = std::array::from_fn(|i| 0.2 * sign(i) * ds);
+            arm.command(&mut world, &q, &qd);
+            arm.command_gripper(&mut world, 0.02, 40.0);
+            world.step();
+            let measured = arm.joint_positions(&world);
+            for i in 0..6 {
+                assert!((measured[i] - q[i]).abs() < 2e-3, "step {step} joint {i}");
             }
-            slept += usize::from(asleep.arm_asleep());
-            assert!(!awake.arm_asleep());
-            assert_eq!(bits(&asleep), bits(&awake));
+            // The flange body is where forward kinematics puts it for the measured joints.
+            let flange = crate::kinematics::flange_pose(&kinematics, &measured);
+            let expected = Isometry3::translation(0.0, 0.0, 0.6) * flange;
+            let body = arm.flange_in_world(&world);
+            let error = (body.translation.vector - expected.translation.vector).norm();
+            assert!(error < 1e-4, "step {step}: flange {error} m off");
         }
-        assert!(slept > 120, "the held arm slept {slept} of 240 steps");
-        // A new command wakes it at once, and it moves as the arm that never slept.
-        let mut target = q;
-        target[0] += 0.2;
-        for step in 0..120 {
-            for world in [&mut asleep, &mut awake] {
-                arm.command(world, &target, &[0.0; 6]);
-                arm.command_gripper(world, 0.02, 40.0);
-                world.step();
-            }
-            assert!(!asleep.arm_asleep() || step > 12, "asleep at step {step}");
-            assert_eq!(bits(&asleep), bits(&awake), "step {step}");
+        let measured = arm.joint_positions(&world);
+        for i in 0..6 {
+            let end = start[i] + 0.2 * sign(i);
+            assert!((measured[i] - end).abs() < 1e-6, "joint {i} settled off");
         }
-        let moved = arm.joint_positions(&asleep)[0] - q[0];
-        assert!(moved > 0.1, "the woken arm moved {moved} rad");
-    }
-
-    /// Limit axes declared to rapier now, over every multibody link.
-    fn limits_on(world: &World) -> usize {
-        world
-            .physics
-            .multibody_joints
-            .multibodies()
-            .flat_map(|m| m.links())
-            .map(|l| l.joint().data.limit_axes.bits().count_ones() as usize)
-            .sum()
+        for pad in arm.finger_positions_m(&world) {
+            assert!((pad - 0.02).abs() < 5e-4, "a pad at {pad} m");
+        }
     }
 
     #[test]
-    fn a_gated_limit_stops_a_joint_as_the_limit_always_on_does() {
-        let (mut gated, arm) = held_arm(false);
-        let (mut always, _) = held_arm(false);
-        always.set_limit_gating(false);
-        let start = home_q();
+    fn a_joint_commanded_past_its_limit_stops_at_it() {
+        let (mut world, arm) = held_arm();
+        let mut q = home_q();
         let upper = 3.04;
-        // The wrist joint driven at 2 rad/s to 0.3 rad past its upper limit.
-        let mut seen_off = false;
-        let mut seen_on = false;
-        for step in 0..480 {
-            let t = (step + 1) as f64 * gated.params().dt_s;
-            let mut q = start;
-            q[5] = (start[5] + 2.0 * t).min(upper + 0.3);
-            let mut qd = [0.0; 6];
-            qd[5] = if q[5] < upper + 0.3 { 2.0 } else { 0.0 };
-            for world in [&mut gated, &mut always] {
-                arm.command(world, &q, &qd);
-                arm.command_gripper(world, 0.02, 40.0);
-                world.step();
-            }
-            let bits = |world: &World| arm.joint_positions(world).map(f64::to_bits);
-            assert_eq!(bits(&gated), bits(&always), "step {step}");
-            // The jaws at 20 mm are far from theirs (4-50 mm): only the wrist's can be on.
-            let wrist = arm.joint_positions(&gated)[5];
-            seen_off |= limits_on(&gated) == 0 && wrist < upper - 0.2;
-            seen_on |= limits_on(&gated) == 1 && wrist > upper - 0.1;
+        q[5] = upper + 0.3;
+        for _ in 0..480 {
+            arm.command(&mut world, &q, &[0.0; 6]);
+            world.step();
+            assert!(arm.joint_positions(&world)[5] <= upper + 1e-5);
         }
-        assert!(seen_off && seen_on, "off {seen_off}, on {seen_on}");
-        assert_eq!(limits_on(&always), 8);
-        // The limit is soft (rapier's joint softness against a servo with the wrist's whole
-        // effort): it holds the wrist past its end, but well short of the command.
-        let wrist = arm.joint_positions(&gated)[5];
+        let wrist = arm.joint_positions(&world)[5];
         assert!(
-            wrist > upper - 0.01 && wrist < upper + 0.15,
-            "the wrist ended at {wrist} rad, its limit {upper}, commanded {}",
-            upper + 0.3
+            (wrist - upper).abs() < 1e-5,
+            "the wrist ended at {wrist} rad"
         );
     }
 
