@@ -212,6 +212,7 @@ impl SimArm {
         let mut fingers = Vec::with_capacity(2);
         let mut range_m = [f64::NEG_INFINITY, f64::INFINITY];
         let mut finger_mass_kg = 0.0;
+        let mut speed_m_s = f64::INFINITY;
         for name in FINGER_JOINTS {
             let joint = find_joint(name)?;
             if !prismatic(joint) {
@@ -224,6 +225,10 @@ impl SimArm {
                 range_m[1] = range_m[1].min(f64::from(limits.max));
             }
             finger_mass_kg += masses[joint.link2];
+            let limit = &description.joints[joint.urdf_joint_index].limit;
+            if limit.velocity > 0.0 {
+                speed_m_s = speed_m_s.min(limit.velocity);
+            }
             fingers.push(JawFinger {
                 parent: joint.link1,
                 child: joint.link2,
@@ -238,7 +243,11 @@ impl SimArm {
         if !range_m[1].is_finite() {
             range_m[1] = 0.1;
         }
-        let jaws = Jaws::new([fingers[0], fingers[1]], range_m, finger_mass_kg);
+        if !speed_m_s.is_finite() {
+            // No velocity limit in the file: the drive's own jaw speed, with a margin.
+            speed_m_s = 1.5 * JAW_SPEED_M_S;
+        }
+        let jaws = Jaws::new([fingers[0], fingers[1]], range_m, speed_m_s, finger_mass_kg);
         let closed_gap_m = 2.0 * jaws.stop_m();
         world.drive = Some(ServoDrive::new(servos, jaws, poses));
         // Every URDF link with a body or a collider, in the file's order; a welded link names

@@ -7,14 +7,17 @@
 //! but its slide, as it was on the arm's multibody: what the pads hold moves with the gripper
 //! or slides on the pads by friction, never because a finger gave way sideways.
 //!
-//! The offset is integrated once a step, by the two fingers' servos (force-based, each
-//! [`FINGER_STIFFNESS_N_M`] and [`FINGER_DAMPING_N_S_M`] towards the commanded offset, saturating
-//! at the commanded force: a force-limited gripper) against the force the pads' contacts put
-//! on the fingers in the last step (the solver's normal impulses over the step). That contact
-//! force is linearised in the step's motion, with the stiffness and damping the solver's soft
-//! contacts give a body of the touching part's mass, and the step is solved implicitly in both
-//! (backward Euler): explicit feedback of a contact that stiff on 0.16 kg of fingers would
-//! need a step a hundred times shorter.
+//! The offset moves once a step. While the jaws open or touch nothing it follows the two
+//! fingers' servos (force-based, each [`FINGER_STIFFNESS_N_M`] and [`FINGER_DAMPING_N_S_M`]
+//! towards the commanded offset, saturating at the commanded force, integrated by backward
+//! Euler), at most at the fingers' joint speed. Closing on something, the squeeze is regulated
+//! instead: kinematic pads press a body only through the solver's soft contacts, whose force
+//! grows with how deep the pad sits in the body, so each step the jaws go a share of the way
+//! that would bring the force the pads' contacts put on the fingers in the last step (the
+//! solver's normal impulses over the step) to the limit, in the stiffness those contacts give a
+//! body of the touching part's mass (a twentieth: the force answers a step late), and never
+//! deeper than a quarter of the held body's half-width. A held part is squeezed with the
+//! limit's force, as by a force-limited gripper, and held by the pads' contact and friction.
 
 use rapier3d::prelude::*;
 
@@ -24,8 +27,13 @@ pub const FINGER_STIFFNESS_N_M: f64 = 4_000.0;
 pub const FINGER_DAMPING_N_S_M: f64 = 120.0;
 /// The share of the way to the force limit the squeeze goes in a step.
 const SQUEEZE_GAIN: f64 = 0.05;
-/// How fast the jaws give way to a squeeze above the limit, at most, m/s.
-const JAW_GIVE_M_S: f64 = 0.15;
+/// How deep a pad may press into what it holds, as a share of the held body's half-width (the
+/// pad's offset plus its depth). The solver's soft contacts push a body out of a kinematic pad
+/// in proportion to its mass, so on a narrow light tube the limit's force would take the pads
+/// through it; its grip needs far less.
+const PAD_GIVE_SHARE: f64 = 0.25;
+/// The share of the way to the pads' give the squeeze goes in a step.
+const DEPTH_GAIN: f64 = 0.25;
 
 /// One finger on its prismatic joint: the link it rides on, its own link and body, and the
 /// joint's frames, their x axis its direction of opening.
@@ -51,8 +59,8 @@ pub(super) struct PadLoad {
     pub(super) force_n: f64,
     /// How much the force falls per metre the jaws open, N/m.
     pub(super) stiffness_n_m: f64,
-    /// How much it falls per m/s of opening, N s/m.
-    pub(super) damping_n_s_m: f64,
+    /// How deep the deepest pad contact sinks into what it presses, m.
+    pub(super) depth_m: f64,
 }
 
 /// The jaws: their state, their command and their fingers.
@@ -63,6 +71,8 @@ pub(super) struct Jaws {
     range_m: [f64; 2],
     /// Both fingers' mass, kg.
     mass_kg: f64,
+    /// The fingers' top speed (their joints' velocity limit), m/s.
+    speed_m_s: f64,
     /// Each pad's offset from the centre line (m) and its rate (m/s, opening positive).
     offset_m: f64,
     rate_m_s: f64,
@@ -72,12 +82,18 @@ pub(super) struct Jaws {
 }
 
 impl Jaws {
-    /// Jaws of `fingers` (left, right), their offsets limited to `range_m`, weighing `mass_kg`
-    /// together, at rest at the lower end of their range.
-    pub(super) fn new(fingers: [JawFinger; 2], range_m: [f64; 2], mass_kg: f64) -> Self {
+    /// Jaws of `fingers` (left, right), their offsets limited to `range_m` and their speed to
+    /// `speed_m_s`, weighing `mass_kg` together, at rest at the lower end of their range.
+    pub(super) fn new(
+        fingers: [JawFinger; 2],
+        range_m: [f64; 2],
+        speed_m_s: f64,
+        mass_kg: f64,
+    ) -> Self {
         Self {
             fingers,
             range_m,
+            speed_m_s,
             mass_kg: mass_kg.max(1e-3),
             offset_m: range_m[0],
             rate_m_s: 0.0,
@@ -127,7 +143,6 @@ impl Jaws {
     pub(super) fn load(&self, physics: &PhysicsWorld, dt: f64) -> PadLoad {
         let softness = &physics.integration_parameters.contact_softness;
         let omega = f64::from(softness.angular_frequency());
-        let zeta = f64::from(softness.damping_ratio);
         let mut load = PadLoad::default();
         for finger in &self.fingers {
             let Some(body) = physics.bodies.get(finger.body) else {
@@ -164,6 +179,9 @@ impl Jaws {
                             continue;
                         }
                         let pressed: Real = manifold.points.iter().map(|p| p.data.impulse).sum();
+                        for point in &manifold.points {
+                            load.depth_m = load.depth_m.max(-f64::from(point.dist));
+                        }
                         if pressed > 0.0 {
                             impulse += manifold.data.normal * (sign * pressed);
                             touching_kg = touching_kg.max(f64::from(other_body.mass()));
@@ -173,7 +191,6 @@ impl Jaws {
             }
             load.force_n += f64::from(impulse.dot(opening)) / dt;
             load.stiffness_n_m += touching_kg * omega * omega;
-            load.damping_n_s_m += 2.0 * zeta * touching_kg * omega;
         }
         load
     }
@@ -185,9 +202,9 @@ impl Jaws {
         self.integrate(&load, dt);
     }
 
-    /// One step of the offset: the servos' own motion (backward Euler, force-limited) while
-    /// the jaws open or touch nothing; closing on something, the squeeze regulated to the force
-    /// limit (see the module's documentation).
+    /// One step of the offset under `load`: the servos' own motion while the jaws open or touch
+    /// nothing, the squeeze regulated while they close on something (see the module's
+    /// documentation).
     pub(super) fn integrate(&mut self, load: &PadLoad, dt: f64) {
         let (k, c) = (2.0 * FINGER_STIFFNESS_N_M, 2.0 * FINGER_DAMPING_N_S_M);
         let (m, s, u) = (self.mass_kg, self.offset_m, self.rate_m_s);
@@ -202,11 +219,15 @@ impl Jaws {
         };
         let closing = self.target_m < s;
         if closing && load.stiffness_n_m > 0.0 {
-            // A fraction of the step that would bring the pads' force to the limit, in the
-            // contacts' own stiffness; never closing faster than the servos would.
-            let step = SQUEEZE_GAIN * (load.force_n - limit) / load.stiffness_n_m;
-            rate = (step / dt).clamp(rate.min(0.0), JAW_GIVE_M_S);
+            // A share of the step that would bring the pads' force to the limit, in the
+            // contacts' own stiffness, or their depth to a quarter of the held body's
+            // half-width, whichever opens more; never closing faster than the servos would.
+            let by_force = SQUEEZE_GAIN * (load.force_n - limit) / load.stiffness_n_m;
+            let give = PAD_GIVE_SHARE * (s + load.depth_m);
+            let by_depth = DEPTH_GAIN * (load.depth_m - give);
+            rate = (by_force.max(by_depth) / dt).max(rate.min(0.0));
         }
+        rate = rate.clamp(-self.speed_m_s, self.speed_m_s);
         let mut offset = s + dt * rate;
         if offset < self.range_m[0] || offset > self.range_m[1] {
             offset = offset.clamp(self.range_m[0], self.range_m[1]);
@@ -228,7 +249,7 @@ mod tests {
             frame1: Pose::IDENTITY,
             frame2: Pose::IDENTITY,
         };
-        Jaws::new([finger, finger], [0.004, 0.05], 0.16)
+        Jaws::new([finger, finger], [0.004, 0.05], 0.15, 0.16)
     }
 
     #[test]
@@ -248,25 +269,54 @@ mod tests {
     #[test]
     fn jaws_on_a_stiff_part_settle_at_the_force_limit() {
         // A part 30 mm wide (the pads meet it at 15 mm), pressed as a soft contact of a 2 kg
-        // body at 60 Hz, damping ratio 2: the load each step from where the pads stand.
-        let (kc, cc) = (
-            2.0 * 2.0 * (2.0 * std::f64::consts::PI * 60.0f64).powi(2),
-            0.0,
-        );
+        // body at 60 Hz; the force the jaws read is a step old, and the contact is `scale`
+        // times as stiff as the jaws reckon: they settle at the limit all the same.
+        let estimate = 2.0 * 2.0 * (2.0 * std::f64::consts::PI * 60.0f64).powi(2);
+        for scale in [0.3, 1.0, 4.0, 10.0] {
+            let stiffness = scale * estimate;
+            let mut j = jaws();
+            j.reset(0.02, 40.0);
+            let dt = 1.0 / 240.0;
+            let mut read = PadLoad::default();
+            for _ in 0..960 {
+                j.command(0.0, 40.0);
+                j.integrate(&read, dt);
+                let depth = (0.015 - j.offset_m()).max(0.0);
+                read = PadLoad {
+                    force_n: stiffness * depth,
+                    stiffness_n_m: if depth > 0.0 { estimate } else { 0.0 },
+                    depth_m: depth,
+                };
+            }
+            let force = stiffness * (0.015 - j.offset_m());
+            assert!(
+                (force - 80.0).abs() < 0.5,
+                "x{scale}: squeeze {force} N on both pads"
+            );
+        }
+    }
+
+    #[test]
+    fn jaws_on_a_light_part_stop_at_the_pads_give() {
+        // A 20 g part 20 mm wide: at the soft contacts' stiffness for its mass the limit's 80 N
+        // would take the pads 14 mm into it; they stop at a quarter of its half-width, the
+        // force below the limit.
+        let kc = 2.0 * 0.02 * (2.0 * std::f64::consts::PI * 60.0f64).powi(2);
         let mut j = jaws();
-        j.reset(0.02, 40.0);
+        j.reset(0.012, 40.0);
         let dt = 1.0 / 240.0;
         for _ in 0..480 {
             j.command(0.0, 40.0);
-            let depth = (0.015 - j.offset_m()).max(0.0);
+            let depth = (0.01 - j.offset_m()).max(0.0);
             let load = PadLoad {
                 force_n: kc * depth,
                 stiffness_n_m: if depth > 0.0 { kc } else { 0.0 },
-                damping_n_s_m: cc,
+                depth_m: depth,
             };
             j.integrate(&load, dt);
         }
-        let force = kc * (0.015 - j.offset_m());
-        assert!((force - 80.0).abs() < 0.5, "squeeze {force} N on both pads");
+        // The part's half-width is 10 mm: a quarter of it.
+        let depth = 0.01 - j.offset_m();
+        assert!((depth - 0.0025).abs() < 1e-5, "the pads {depth} m deep");
     }
 }

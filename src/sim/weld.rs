@@ -1,10 +1,8 @@
 //! Welds each link that hangs on a fixed joint into its parent before the arm enters the world.
 //!
-//! Rapier's multibody recomputes its mass matrix, with one pair of quadratic forms per link, in
-//! every solver substep, whether or not a link can move relative to its parent: a link on a
-//! fixed joint costs as much there as a moving one. Welded, its colliders ride on the parent's
-//! body at the same place and its inertia is added to the parent's, so the multibody has the
-//! same dynamics with fewer links. Links without any geometry or inertia (a `world` anchor, a
+//! A link on a fixed joint moves with its parent. Welded, its colliders ride on the parent's body
+//! at the same place and its inertia is added to the parent's, so the arm has the same motion
+//! with fewer bodies to place each step. Links without any geometry or inertia (a `world` anchor, a
 //! tool-centre frame) the loader already drops.
 
 use rapier3d::na::Matrix3;

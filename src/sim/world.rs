@@ -10,10 +10,9 @@ use crate::scenario::PhysicsSection;
 /// arm moves free or stands still, and the scene's contacts are parts and bottles at rest on
 /// the belt or in a bin, or riding it.
 ///
-/// Each substep recomputes the arm's multibody mass matrix, its LU factors and the joint
-/// motors' constraints: two thirds of a free step's instructions at 4 substeps (callgrind).
 /// Parts and bottles resting on the belt or in a bin need no more than one; the arm's servos
-/// (1000 rad/s, critically damped, integrated implicitly by rapier) need two once it moves at
+/// (1000 rad/s, critically damped, integrated implicitly per substep: `sim::servo`; measured
+/// when rapier's multibody integrated the same law) need two once it moves at
 /// its published limits: with one, a joint ending an acceleration ramp overshot its velocity
 /// limit by up to 20 % (measured joint speed over 50 trials of paper_50 in camera mode, seeds
 /// 731 and 1-5), with two by up to 2 % at 0.92 of the limits and not at all at 0.9 (the
@@ -164,10 +163,8 @@ impl World {
     /// solver substeps while a robot collider is near a moving body, fewer while none is (see
     /// [`FREE_SOLVER_ITERATIONS`] for why).
     ///
-    /// While the arm holds still, its commands unchanged and no moving body within rapier's
-    /// contact prediction of it, its multibody sleeps: its servos would only hold it where it
-    /// is, and its mass matrix is most of a step's cost. A new command or a body coming near
-    /// wakes it before the step that needs it.
+    /// The arm's joints and jaws are advanced first, over the same substeps, and its links
+    /// handed where the step ends (`sim::servo`, `sim::jaws`).
     pub fn step_with_hooks(&mut self, hooks: &dyn PhysicsHooks) {
         let substeps = self.next_solver_iterations();
         if let Some(drive) = self.drive.as_mut() {
