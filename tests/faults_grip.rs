@@ -53,15 +53,22 @@ fn every_weakened_grip_is_felt_and_most_parts_are_set_down_and_sorted() {
         if actions.contains(&"saw_lying_part") {
             let lying = &fault["saw_lying_part"];
             assert_eq!(lying["part_type"], record["part"]["part_type"], "{fault}");
-            // Picked again lying: laid in its bin, or counted lost with its reason.
+            // Picked again lying: laid in its bin, or counted lost with its reason, or the trial
+            // failed with its own (a bottle the pick touched).
             let laid = fault["recovered"] == true && actions.contains(&"repicked_lying");
-            assert!(laid || actions.contains(&"counted_lost"), "{fault}");
+            let failed = record["outcome"] == "failure" && record["failure"].is_string();
+            assert!(
+                laid || actions.contains(&"counted_lost") || failed,
+                "{fault}"
+            );
         } else {
             assert!(fault.get("saw_lying_part").is_none(), "{fault}");
         }
         sorted += usize::from(record["outcome"] == "success");
     }
-    // Measured 14 of 16: 3 fell lying while they were brought back; one was picked lying and
-    // laid in its bin, two lay against the belt's rail where no finger fits beside them.
+    // Measured 15 of 16 (6 December 2026, the jaws kinematic fingers): 3 fell lying, 2 were
+    // picked lying and laid in their bins, the third's grip weakened again in its lift and it
+    // was counted lost (14 of 16 with the arm's multibody: 3 lying, one laid, two against the
+    // belt's rail).
     assert!(sorted >= 12, "{sorted} of 16 sorted");
 }

@@ -15,8 +15,8 @@
 //! grows with how deep the pad sits in the body, so each step the jaws go a share of the way
 //! that would bring the force the pads' contacts put on the fingers in the last step (the
 //! solver's normal impulses over the step) to the limit, in the stiffness those contacts give a
-//! body of the touching part's mass (a twentieth: the force answers a step late), and never
-//! deeper than a quarter of the held body's half-width. A held part is squeezed with the
+//! body of the touching part's mass (a twentieth: the force answers a step late; a fifth while
+//! a fallen limit lets go), and never deeper than a quarter of the held body's half-width. A held part is squeezed with the
 //! limit's force, as by a force-limited gripper, and held by the pads' contact and friction.
 
 use rapier3d::prelude::*;
@@ -25,8 +25,12 @@ use rapier3d::prelude::*;
 pub const FINGER_STIFFNESS_N_M: f64 = 4_000.0;
 /// Each finger's servo damping, N s/m.
 pub const FINGER_DAMPING_N_S_M: f64 = 120.0;
-/// The share of the way to the force limit the squeeze goes in a step.
+/// The share of the way to the force limit the squeeze goes in a step, closing.
 const SQUEEZE_GAIN: f64 = 0.05;
+/// The share of the way to the force limit the jaws give in a step after the limit has fallen
+/// below what the pads press (a weakened grip lets go at once; on an impact the jaws give at
+/// the closing share, which keeps the part still in them).
+const GIVE_GAIN: f64 = 0.2;
 /// How deep a pad may press into what it holds, as a share of the held body's half-width (the
 /// pad's offset plus its depth). The solver's soft contacts push a body out of a kinematic pad
 /// in proportion to its mass, so on a narrow light tube the limit's force would take the pads
@@ -79,6 +83,8 @@ pub(super) struct Jaws {
     /// The servos' set-point (m) and force limit per finger (N).
     target_m: f64,
     force_n: f64,
+    /// Whether the force limit has fallen and the pads still press harder than it.
+    relaxing: bool,
 }
 
 impl Jaws {
@@ -99,6 +105,7 @@ impl Jaws {
             rate_m_s: 0.0,
             target_m: range_m[0],
             force_n: 0.0,
+            relaxing: false,
         }
     }
 
@@ -114,8 +121,10 @@ impl Jaws {
 
     /// Drives the pads towards `target_m`, each pushing with at most `force_n`.
     pub(super) fn command(&mut self, target_m: f64, force_n: f64) {
+        let force_n = force_n.max(0.0);
+        self.relaxing |= force_n < self.force_n;
         self.target_m = target_m;
-        self.force_n = force_n.max(0.0);
+        self.force_n = force_n;
     }
 
     /// Puts the pads at rest at `offset_m`, held there with `force_n`.
@@ -123,6 +132,7 @@ impl Jaws {
         self.offset_m = offset_m.clamp(self.range_m[0], self.range_m[1]);
         self.rate_m_s = 0.0;
         self.command(offset_m, force_n);
+        self.relaxing = false;
     }
 
     /// The fingers' bodies and their links' indices in the drive's poses.
@@ -222,7 +232,14 @@ impl Jaws {
             // A share of the step that would bring the pads' force to the limit, in the
             // contacts' own stiffness, or their depth to a quarter of the held body's
             // half-width, whichever opens more; never closing faster than the servos would.
-            let by_force = SQUEEZE_GAIN * (load.force_n - limit) / load.stiffness_n_m;
+            let excess = load.force_n - limit;
+            self.relaxing &= excess > 0.0;
+            let gain = if self.relaxing {
+                GIVE_GAIN
+            } else {
+                SQUEEZE_GAIN
+            };
+            let by_force = gain * excess / load.stiffness_n_m;
             let give = PAD_GIVE_SHARE * (s + load.depth_m);
             let by_depth = DEPTH_GAIN * (load.depth_m - give);
             rate = (by_force.max(by_depth) / dt).max(rate.min(0.0));
