@@ -76,16 +76,18 @@ fn lying_outcomes(records: &[Value]) -> (usize, usize) {
     (lying, laid)
 }
 
-/// Over 16 trials each fault is answered; in each mode at least one tube fell lying and was
-/// laid, by its body, in the bin its truth calls for (measured 6 December 2026, the jaws
-/// kinematic fingers: oracle 3 lying, 2 laid; camera 5 lying, 4 laid; with the arm's
-/// multibody: oracle 3 lying, 1 laid, camera 2 lying, 1 laid).
+/// Over 40 trials each fault is answered; in each mode at least one tube fell lying and was
+/// laid, by its body, in the bin its truth calls for. Measured 6 December 2026, the jaws
+/// kinematic fingers, which feel most weakened grips in time to set the part down: oracle 6
+/// lying, 3 laid, camera 6 lying, 4 laid (in the first 16 trials one lying part in oracle mode,
+/// so the test runs 40); with the arm's multibody, 16 trials: oracle 3 lying, 1 laid, camera 2
+/// lying, 1 laid.
 #[test]
 fn a_tube_that_falls_lying_is_picked_again_and_laid_in_its_bin_in_both_modes() {
     for perception in ["oracle", "camera"] {
-        let dir = run_forced("faults/gripper.toml", perception, "16", "2", perception);
+        let dir = run_forced("faults/gripper.toml", perception, "40", "2", perception);
         let records = records(&dir);
-        assert_eq!(records.len(), 16);
+        assert_eq!(records.len(), 40);
         let (lying, laid) = lying_outcomes(&records);
         assert!(
             laid >= 1,

@@ -66,9 +66,9 @@ fn every_weakened_grip_is_felt_and_most_parts_are_set_down_and_sorted() {
         }
         sorted += usize::from(record["outcome"] == "success");
     }
-    // Measured 15 of 16 (6 December 2026, the jaws kinematic fingers): 3 fell lying, 2 were
-    // picked lying and laid in their bins, the third's grip weakened again in its lift and it
-    // was counted lost (14 of 16 with the arm's multibody: 3 lying, one laid, two against the
-    // belt's rail).
+    // Measured 15 of 16 (6 December 2026, the jaws kinematic fingers, which feel most weakened
+    // grips in time to set the part down): one fell lying, was picked lying, its grip weakened
+    // again in the lift and it was counted lost (14 of 16 with the arm's multibody: 3 lying, one
+    // laid, two against the belt's rail).
     assert!(sorted >= 12, "{sorted} of 16 sorted");
 }

@@ -36,6 +36,9 @@ const GIVE_GAIN: f64 = 0.2;
 /// in proportion to its mass, so on a narrow light tube the limit's force would take the pads
 /// through it; its grip needs far less.
 const PAD_GIVE_SHARE: f64 = 0.25;
+/// A pad's contact point this near (m) touches what it presses; the solver's contacts reach
+/// further, predicted.
+const TOUCH_M: f64 = 0.0005;
 /// The share of the way to the pads' give the squeeze goes in a step.
 const DEPTH_GAIN: f64 = 0.25;
 
@@ -188,8 +191,15 @@ impl Jaws {
                         if manifold.data.solver_contacts.is_empty() {
                             continue;
                         }
-                        let pressed: Real = manifold.points.iter().map(|p| p.data.impulse).sum();
-                        for point in &manifold.points {
+                        // Only points touching now: a pair the solver left out keeps the
+                        // impulses of its last solve while the pads move away from it.
+                        let touching = manifold
+                            .points
+                            .iter()
+                            .filter(|p| f64::from(p.dist) <= TOUCH_M);
+                        let mut pressed: Real = 0.0;
+                        for point in touching {
+                            pressed += point.data.impulse;
                             load.depth_m = load.depth_m.max(-f64::from(point.dist));
                         }
                         if pressed > 0.0 {
