@@ -291,7 +291,7 @@ mod tests {
         let (mut world, arm) = held_arm();
         let start = home_q();
         let kinematics = arm.kinematics().model.clone();
-        let sign = |i: usize| if i % 2 == 0 { 1.0 } else { -1.0 };
+        let sign = |i: usize| if i.is_multiple_of(2) { 1.0 } else { -1.0 };
         // Each joint along a smooth 0.2 rad move over a second, then held; the jaws close to
         // 20 mm.
         for step in 0..360 {
