@@ -67,6 +67,8 @@ struct Episode {
     trial: u32,
     target_q: JointVector,
     jaw_command: (f64, f64),
+    /// The joint servos' set-point velocities, rad/s.
+    setpoint_qd: JointVector,
     velocities: JointVector,
     ending: episode_end::Watch,
     record: Option<TrialRecord>,
@@ -189,6 +191,7 @@ impl CellEnv {
             trial,
             target_q,
             jaw_command,
+            setpoint_qd: [0.0; 6],
             velocities: [0.0; 6],
             ending,
             record: None,
@@ -235,7 +238,7 @@ impl CellEnv {
         data.belt.run_at(speed);
         data.phase = episode.ending.phase(data, action.belt_run);
         let before = data.view().joint_positions_rad();
-        let result = run_period(model, data, &episode.target_q);
+        let result = run_period(model, data, &episode.target_q, &mut episode.setpoint_qd);
         let after = data.view().joint_positions_rad();
         let period_s = self.model.scenario().physics.dt_s * PHYSICS_STEPS_PER_CONTROL as f64;
         episode.velocities = std::array::from_fn(|j| (after[j] - before[j]) / period_s);
@@ -376,18 +379,25 @@ fn run_period(
     model: &CellModel,
     data: &mut CellData,
     target_q: &JointVector,
+    setpoint_qd: &mut JointVector,
 ) -> Result<(), Failure> {
     let dt_s = model.scenario().physics.dt_s;
     let limits = &model.arm_model().limits;
     for _ in 0..PHYSICS_STEPS_PER_CONTROL {
-        let mut qd = [0.0; 6];
         for j in 0..6 {
-            let most = limits[j].max_velocity_rad_s * dt_s;
-            let delta = (target_q[j] - data.q[j]).clamp(-most, most);
-            data.q[j] += delta;
-            qd[j] = delta / dt_s;
+            let (v_max, a_max) = (limits[j].max_velocity_rad_s, limits[j].max_accel_rad_s2);
+            let error = target_q[j] - data.q[j];
+            // The fastest speed from which the joint still stops at the target, then at most
+            // its velocity limit, reached at most at its acceleration limit.
+            let stop = (2.0 * a_max * error.abs()).sqrt().min(error.abs() / dt_s);
+            let wanted = stop.min(v_max).copysign(error);
+            let v = wanted.clamp(setpoint_qd[j] - a_max * dt_s, setpoint_qd[j] + a_max * dt_s);
+            data.q[j] += v * dt_s;
+            setpoint_qd[j] = v;
         }
-        data.cell.arm.command(&mut data.cell.world, &data.q, &qd);
+        data.cell
+            .arm
+            .command(&mut data.cell.world, &data.q, setpoint_qd);
         data.tick(model)?;
     }
     Ok(())
