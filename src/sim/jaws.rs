@@ -16,8 +16,9 @@
 //! that would bring the force the pads' contacts put on the fingers in the last step (the
 //! solver's normal impulses over the step) to the limit, in the stiffness those contacts give a
 //! body of the touching part's mass (a twentieth: the force answers a step late; a fifth while
-//! a fallen limit lets go), and never deeper than a quarter of the held body's half-width. A held part is squeezed with the
-//! limit's force, as by a force-limited gripper, and held by the pads' contact and friction.
+//! a fallen limit lets go), and never deeper than a quarter of the held body's half-width. A
+//! held part is squeezed with the limit's force, as by a force-limited gripper, and held by the
+//! pads' contact and friction.
 
 use rapier3d::prelude::*;
 

@@ -179,12 +179,7 @@ impl World {
     /// Whether a robot collider has a contact point with a body that can move, touching or
     /// predicted within `contact_margin_m`, as of the last step.
     fn robot_near_moving_body(&self) -> bool {
-        self.robot_contacts_moving_body(self.params.contact_margin_m as f32)
-    }
-
-    /// Whether a robot collider has a contact point closer than `margin` (m) with a body that
-    /// can move, as of the last step.
-    fn robot_contacts_moving_body(&self, margin: f32) -> bool {
+        let margin = self.params.contact_margin_m as f32;
         let physics = &self.physics;
         let robot = Tag::Robot.bits();
         physics.narrow_phase.contact_pairs().any(|pair| {
