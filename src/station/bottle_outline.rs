@@ -188,7 +188,18 @@ impl BottleFitter {
         cells: &Cells,
         pose_at: impl Fn(f64, f64, f64) -> Isometry3<f64>,
     ) -> Option<((f64, f64, f64), f64)> {
-        let score = |s: (f64, f64, f64)| self.agreement(&pose_at(s.0, s.1, s.2), cells);
+        // A step back to a place already judged (the move before, undone) is not judged
+        // again: the same place, to the bit, has the same agreement.
+        let mut judged: Vec<([u64; 3], Option<f64>)> = Vec::new();
+        let mut score = |s: (f64, f64, f64)| {
+            let key = [s.0.to_bits(), s.1.to_bits(), s.2.to_bits()];
+            if let Some((_, a)) = judged.iter().find(|(k, _)| *k == key) {
+                return *a;
+            }
+            let a = self.agreement(&pose_at(s.0, s.1, s.2), cells);
+            judged.push((key, a));
+            a
+        };
         let mut best = (start, score(start)?);
         let (mut step, mut turn_step) = (REFINE_STEP_M, REFINE_STEP_RAD);
         for _ in 0..=REFINE_HALVINGS {
