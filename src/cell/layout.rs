@@ -162,6 +162,11 @@ impl Cell {
     /// Advances the world one step with the cell's contact hooks (the belt's speed, the pads'
     /// stiction), then brings the pads' anchors up to date.
     pub fn step(&mut self) {
+        // The belt's motion reaches the bodies on it through the contact hooks, which rapier
+        // does not see: a body at rest on the belt is woken while the belt runs.
+        if self.conveyor.speed_m_s() != 0.0 {
+            self.world.wake_resting();
+        }
         let hooks = CellHooks {
             conveyor: &self.conveyor,
             pads: &self.pads,

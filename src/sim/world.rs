@@ -206,6 +206,16 @@ impl World {
         })
     }
 
+    /// Wakes every body at rest (asleep, in rapier's terms), as a push rapier cannot see would.
+    pub fn wake_resting(&mut self) {
+        let physics = &mut self.physics;
+        let resting = physics.bodies.iter().filter(|(_, b)| b.is_sleeping());
+        let resting: Vec<RigidBodyHandle> = resting.map(|(handle, _)| handle).collect();
+        for handle in resting {
+            physics.wake_up(handle, true);
+        }
+    }
+
     /// Advances the world by one fixed step.
     pub fn step(&mut self) {
         self.step_with_hooks(&());
