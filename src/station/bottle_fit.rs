@@ -80,7 +80,7 @@ impl BottleFitter {
             calibration,
             radius_m: bottle.radius_m,
             height_m: bottle.height_m,
-            silhouette: Silhouette::of_points(points.iter().copied()),
+            silhouette: Silhouette::of_hull_points(points.iter().copied()),
             body_points: body_points(&points, bottle.height_m),
             outline: Outline::of_mesh(&mesh),
             part_height_m: 0.0,
