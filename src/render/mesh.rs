@@ -256,6 +256,12 @@ impl Mesh {
     /// A plastic bottle standing on its base at the origin, its axis along z: a rounded body,
     /// a shoulder, a neck and a cap.
     pub fn bottle(radius_m: f64, height_m: f64) -> Self {
+        Self::bottle_lathe(radius_m, height_m, ROUND_SEGMENTS)
+    }
+
+    /// [`Self::bottle`] with `segments` facets around (the renderer's [`ROUND_SEGMENTS`]; a
+    /// fit that projects the bottle many times may take fewer).
+    pub fn bottle_lathe(radius_m: f64, height_m: f64, segments: usize) -> Self {
         let (r, h) = (radius_m, height_m);
         let body = Material::BOTTLE;
         let cap = Material::BOTTLE_CAP;
@@ -276,7 +282,7 @@ impl Mesh {
         profile.push((0.48 * r, 0.92 * h, cap));
         profile.push((0.48 * r, h, cap));
         profile.push((0.0, h, cap));
-        Self::lathe(&profile, ROUND_SEGMENTS)
+        Self::lathe(&profile, segments)
     }
 }
 
