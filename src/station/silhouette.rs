@@ -39,7 +39,7 @@ impl Silhouette {
     }
 
     /// The outline of `points` without those deep inside their convex hull (at least
-    /// [`HULL_INSIDE_M`] inside every face): a projection's box, and the nearest depth, are
+    /// a micrometre inside every face): a projection's box, and the nearest depth, are
     /// extremes of functions that are linear, or linear over a positive depth, in the point, so
     /// they lie on the hull's vertices, and a point that deep inside projects measurably inside
     /// them (a micrometre is a few thousandths of a pixel at a metre), never onto the box. The box
