@@ -229,8 +229,10 @@ impl CameraPerception {
             msaa_samples: scenario.camera.msaa_samples,
             supersample: scenario.camera.supersample,
         };
-        let renderer = Renderer::shared(options)?;
+        // The shipped network loads on a thread of its own from here: it overlaps the
+        // renderer's making (the device, its pipelines) as well as the first trials.
         let detector = Detector::shared(&model)?;
+        let renderer = Renderer::shared(options)?;
         let classes = detector.class_names().to_vec();
         let class_index = |name: &str| classes.iter().position(|c| c == name);
         let type_reader = TypeReader::new(scenario);
