@@ -4,6 +4,7 @@
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use rapier3d::prelude::*;
 
+use super::tube_prism::TubePrism;
 use super::{PartInstance, Tag, World};
 use crate::math::{pose_from_physics, pose_to_physics, vector_to_physics};
 use crate::scenario::BottleSection;
@@ -194,7 +195,7 @@ const TUBE_FOOT_SHARE: f64 = 0.85;
 /// are a sliver along one edge, on which a standing tube balanced and kept rocking by up to
 /// 2 degrees (the camera saw up to 0.1 mm of false roundness). On a centred square it stands
 /// still.
-fn tube_shape(radius: f64, height: f64) -> SharedShape {
+pub(super) fn tube_shape(radius: f64, height: f64) -> SharedShape {
     let mut points = Vec::with_capacity(2 * TUBE_SIDES as usize + 8);
     let mut ring = |r: f64, y: f64, sides: u32| {
         for i in 0..sides {
@@ -211,8 +212,14 @@ fn tube_shape(radius: f64, height: f64) -> SharedShape {
         ring(radius, sign * flank, TUBE_SIDES);
         ring(TUBE_FOOT_SHARE * radius, sign * top, 4);
     }
-    SharedShape::convex_hull(&points)
-        .unwrap_or_else(|| SharedShape::cylinder(top as f32, radius as f32))
+    // The same prism with its support point found near the direction (`sim::tube_prism`).
+    match rapier3d::parry::shape::ConvexPolyhedron::from_convex_hull(&points) {
+        Some(hull) => match TubePrism::new(hull.clone(), radius as f32, TUBE_SIDES as usize) {
+            Some(prism) => SharedShape::new(prism),
+            None => SharedShape::new(hull),
+        },
+        None => SharedShape::cylinder(top as f32, radius as f32),
+    }
 }
 
 /// A bottle that moves slower than this, and turns slower than [`REST_SPIN_RAD_S`], for

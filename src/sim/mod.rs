@@ -12,6 +12,7 @@ mod pad_stiction;
 mod part;
 mod servo;
 mod tag;
+mod tube_prism;
 mod urdf_graph;
 mod weld;
 mod world;
