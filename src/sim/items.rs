@@ -214,9 +214,9 @@ pub(super) fn tube_shape(radius: f64, height: f64) -> SharedShape {
     }
     // The same prism with its support point found near the direction (`sim::tube_prism`).
     match rapier3d::parry::shape::ConvexPolyhedron::from_convex_hull(&points) {
-        Some(hull) => match TubePrism::new(hull.clone(), radius as f32, TUBE_SIDES as usize) {
-            Some(prism) => SharedShape::new(prism),
-            None => SharedShape::new(hull),
+        Some(hull) => match TubePrism::new(hull, radius as f32, TUBE_SIDES as usize) {
+            Ok(prism) => SharedShape::new(prism),
+            Err(hull) => SharedShape::new(*hull),
         },
         None => SharedShape::cylinder(top as f32, radius as f32),
     }

@@ -32,15 +32,19 @@ pub(super) struct TubePrism {
     hull: ConvexPolyhedron,
     /// Per ring (y < 0, y > 0), the index among the hull's points of its corner `k`.
     rings: [Vec<u32>; 2],
-    /// The indices of the other points (the end squares), ascending.
+    /// The indices of the other points (the end squares).
     others: Vec<u32>,
 }
 
 impl TubePrism {
     /// `hull` (the prism `items::tube_shape` builds) with its ring corners found: those at
-    /// `radius` from the axis, at the angles of a regular `sides`-gon. `None` when the hull's
+    /// `radius` from the axis, at the angles of a regular `sides`-gon. The hull back when its
     /// points are not such a prism's (each ring's corners each once, the rest few).
-    pub(super) fn new(hull: ConvexPolyhedron, radius: f32, sides: usize) -> Option<Self> {
+    pub(super) fn new(
+        hull: ConvexPolyhedron,
+        radius: f32,
+        sides: usize,
+    ) -> Result<Self, Box<ConvexPolyhedron>> {
         let mut rings = [vec![u32::MAX; sides], vec![u32::MAX; sides]];
         let mut others = Vec::new();
         let step = std::f32::consts::TAU / sides as f32;
@@ -53,16 +57,20 @@ impl TubePrism {
             let k = (p.z.atan2(p.x) / step).round().rem_euclid(sides as f32) as usize % sides;
             let slot = &mut rings[usize::from(p.y > 0.0)][k];
             if *slot != u32::MAX {
-                return None;
+                return Err(Box::new(hull));
             }
             *slot = index as u32;
         }
         let complete = rings.iter().flatten().all(|&i| i != u32::MAX);
-        (complete && others.len() <= 16).then_some(Self {
-            hull,
-            rings,
-            others,
-        })
+        if complete && others.len() <= 16 {
+            Ok(Self {
+                hull,
+                rings,
+                others,
+            })
+        } else {
+            Err(Box::new(hull))
+        }
     }
 
     /// The polyhedron.
