@@ -20,11 +20,11 @@
 use image::RgbImage;
 use nalgebra::{Isometry3, Point3};
 
-use super::bottle_fit::{BottleFitter, BottlePose};
+use super::bottle_fit::{BottleFitter, BottlePose, CUT_SHARE};
 use super::bottle_outline::Cells;
 use super::camera_percept::BottleSighting;
 use super::measured_tube::{BeltScene, MeasuredTube};
-use super::silhouette::box_residual_px;
+use super::silhouette::{CutBox, box_residual_px};
 use crate::detect::Detection;
 
 /// A box whose best pose's outline agrees with the pixels by at least this (intersection over
@@ -377,13 +377,31 @@ impl BottleFitter {
                 );
                 explaining.extend(cut_lying.into_iter().filter(explains));
             }
+            // A box the border cuts that no standing hypothesis explains by its box: the border
+            // may hide a standing bottle's upper body (from a camera looking down, a standing
+            // bottle near the border reaches out of the frame), so the outline also judges its
+            // best standing hypothesis (candidates are sorted best box first). A lying reading of
+            // a standing bottle leaves 130 mm of its height unguarded.
+            let cut = self
+                .frame_px
+                .is_some_and(|frame| CutBox::of(box_px, frame, CUT_SHARE).is_some());
+            let hidden = if cut && !explaining.iter().any(|p| !p.lying) {
+                candidates.iter().find(|p| !p.lying)
+            } else {
+                None
+            };
             if !explaining.is_empty() {
                 let cells = Cells::read(box_px, e, excluded, |u, v| {
                     self.sees_belt(u, v, belt_top_z_m)
                 });
-                if let Some((poses, agreement)) =
-                    self.by_outline(&explaining, box_px, belt_top_z_m, belt.tubes, &cells)
-                    && agreement >= MIN_AGREEMENT
+                if let Some((poses, agreement)) = self.by_outline(
+                    &explaining,
+                    hidden,
+                    box_px,
+                    belt_top_z_m,
+                    belt.tubes,
+                    &cells,
+                ) && agreement >= MIN_AGREEMENT
                 {
                     fitted.push((k, poses, true));
                     continue;
@@ -507,3 +525,7 @@ pub fn bottle_sightings(
         }
     }
 }
+
+#[cfg(test)]
+#[path = "cut_standing_tests.rs"]
+mod cut_standing_tests;

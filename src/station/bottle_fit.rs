@@ -19,7 +19,7 @@ const LYING_YAW_STEPS: usize = 180;
 /// A hypothesis within this box residual of the best one is kept as well, pixels.
 const AMBIGUITY_PX: f64 = 2.0;
 /// A box side within this share of the frame's width (height) of its border is cut by it.
-const CUT_SHARE: f64 = 0.01;
+pub(super) const CUT_SHARE: f64 = 0.01;
 /// A box side within this share of the frame's width (height) of its border touches it: the
 /// bottle runs on out of the frame.
 const TOUCH_SHARE: f64 = 0.003;
@@ -74,7 +74,7 @@ pub struct BottleFitter {
     pub(super) belt: Option<BeltBand>,
     /// The frame the boxes come from, px: a box its border cuts also gets a standing
     /// hypothesis placed by its whole sides (`None`: none).
-    frame_px: Option<(f64, f64)>,
+    pub(super) frame_px: Option<(f64, f64)>,
 }
 
 impl BottleFitter {

@@ -386,10 +386,13 @@ impl BottleFitter {
     /// standing and the best lying at [`LYING_REFINED`] distinct yaws are refined; the best of
     /// those, and any other within [`AMBIGUITY_AGREEMENT`] of it, are returned best first, with
     /// the best agreement. `None` when no hypothesis can be judged, or every refined one passes
-    /// through one of `tubes`.
+    /// through one of `tubes`. A `hidden` hypothesis (a standing bottle the frame's border may
+    /// cut, whose box does not explain the detection's) is refined and judged beside them when
+    /// any of them is left: it can outdo them, not stand in for them.
     pub(super) fn by_outline(
         &self,
         candidates: &[BottlePose],
+        hidden: Option<&BottlePose>,
         box_px: &[f64; 4],
         belt_top_z_m: f64,
         tubes: &[MeasuredTube],
@@ -429,6 +432,14 @@ impl BottleFitter {
                     .any(|t| self.passes_through(&p.world_from_bottle, t, belt_top_z_m))
             })
             .collect();
+        if !refined.is_empty()
+            && let Some(hidden) = hidden.and_then(|p| self.refined(p, box_px, belt_top_z_m, cells))
+            && !tubes
+                .iter()
+                .any(|t| self.passes_through(&hidden.0.world_from_bottle, t, belt_top_z_m))
+        {
+            refined.push(hidden);
+        }
         refined.sort_by(|a, b| b.1.total_cmp(&a.1));
         let best = refined.first()?.1;
         let mut kept: Vec<BottlePose> = Vec::new();
