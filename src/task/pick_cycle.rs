@@ -7,6 +7,7 @@ use super::cell_data::CellData;
 use super::judge;
 use super::motion_stages::Held;
 use super::sorter::Sorter;
+use super::tracking::BeltTracking;
 use crate::cell::CellModel;
 use crate::control::HoldMonitor;
 use crate::outcome::{
@@ -148,6 +149,11 @@ impl Sorter<'_> {
                     let mut percept = self.perceive(model, data, seen.take())?;
                     // The part detected twice is no obstacle to its own pick.
                     drop_second_looks(&mut percept);
+                    // A stream's bottles carried on out of the view are still on the belt.
+                    if let Some(tracking) = &self.tracking {
+                        let count = BeltTracking::count(data);
+                        tracking.add_tracked_bottles(model, count, &mut percept);
+                    }
                     let (recorded, bin) = decide(model, &percept);
                     *decision = Some(recorded);
                     self.grip_recipe_n = catalogue.part(percept.part_type).grip_force_n;

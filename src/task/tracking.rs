@@ -2,16 +2,17 @@
 //! truth's view of the same stretch) joins the trial's [`TrackSet`] at the belt encoder's count,
 //! and the item at the photo-eye is known by its track.
 
-use nalgebra::{Point3, Vector3};
+use nalgebra::{Isometry3, Point3, Vector3};
 
 use super::cell_data::CellData;
 use crate::cell::CellModel;
 use crate::control::ENCODER_M_PER_COUNT;
 use crate::outcome::{CollectedRecord, Failure, FailureReason, Phase};
 use crate::render::CameraRig;
+use crate::scenario::BottleSection;
 use crate::station::{
-    BeltFrame, BeltPoint, ItemKind, ItemSighting, SeenItem, Sighting, Track, TrackId, TrackSet,
-    TrackerParams, TubeEnvelope, ViewSpan,
+    BeltFrame, BeltPoint, ItemKind, ItemSighting, Percept, SeenItem, Sighting, Track, TrackEnd,
+    TrackId, TrackSet, TrackerParams, TubeEnvelope, ViewSpan, bottle_obstacle,
 };
 
 /// Looks in a row that may miss a track in view before it is counted lost: one look may miss
@@ -31,6 +32,8 @@ const ON_BELT_M: f64 = 0.2;
 const FALL_CLEARANCE_M: f64 = 0.15;
 /// Time for what fell to come to rest in the collector, s.
 const COLLECTOR_REST_S: f64 = 1.0;
+/// A tracked bottle whose predicted place lies this near a bottle of the percept is that one, m.
+const TRACKED_SAME_M: f64 = 0.1;
 
 /// An item of the world the oracle's view saw: a part or a bottle by its registry index.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -78,6 +81,49 @@ impl BeltTracking {
             view,
             tracks,
             truth_at_eye: Vec::new(),
+        }
+    }
+
+    /// Bottles the tracks hold on the belt that `percept` does not: each bottle track open or
+    /// carried out of view downstream (not lost, not picked), at the place the encoder
+    /// predicts, while it is still on the belt and no bottle of the percept stands within
+    /// [`TRACKED_SAME_M`] of it, joins the percept's obstacles as a standing bottle as wide as
+    /// the track's footprint was long. The camera sees the station; the arm carries parts past
+    /// the belt beyond it, where a bottle the camera saw earlier may still ride (a lying reading
+    /// cannot be trusted out of view: standing is the tall case).
+    /// `count` is the encoder's count now.
+    pub(crate) fn add_tracked_bottles(&self, model: &CellModel, count: i64, percept: &mut Percept) {
+        let scenario = model.scenario();
+        let belt = &scenario.conveyor;
+        let end_along_m = belt.belt_center_m[0] + belt.length_m / 2.0 - belt.photo_eye_x_m;
+        let m = self.tracks.params().m_per_count;
+        for track in self.tracks.tracks() {
+            let riding = matches!(track.end, None | Some(TrackEnd::LeftView));
+            if track.kind() != ItemKind::Bottle || !riding {
+                continue;
+            }
+            let at = track.predicted(count, m);
+            if at.along_m > end_along_m {
+                continue;
+            }
+            let point = self.frame.world_from_belt(&at);
+            let known = percept.obstacles.iter().any(|o| {
+                o.name == "bottle" && {
+                    let d = o.world_from_shape.translation.vector - point.coords;
+                    d.x.hypot(d.y) < TRACKED_SAME_M
+                }
+            });
+            if known {
+                continue;
+            }
+            let bottle = BottleSection {
+                radius_m: scenario.bottle.radius_m.max(track.half_length_m),
+                ..scenario.bottle.clone()
+            };
+            let pose = Isometry3::translation(point.x, point.y, point.z);
+            percept
+                .obstacles
+                .push(bottle_obstacle(&bottle, &pose, false, 0.0));
         }
     }
 
@@ -287,3 +333,7 @@ impl BeltTracking {
         Ok(records)
     }
 }
+
+#[cfg(test)]
+#[path = "tracked_bottles_tests.rs"]
+mod tracked_bottles_tests;

@@ -1,0 +1,135 @@
+//! A stream's bottles out of the camera's view stay obstacles while the tracks hold them on the
+//! belt ([`BeltTracking::add_tracked_bottles`]).
+
+use std::path::Path;
+
+use nalgebra::{Isometry3, Point3};
+
+use super::BeltTracking;
+use crate::cell::CellModel;
+use crate::control::ENCODER_M_PER_COUNT;
+use crate::rng::SimRng;
+use crate::scenario::{PartTypeId, Scenario};
+use crate::station::{
+    BeltPoint, ItemKind, ItemSighting, Percept, TrackEnd, TrackId, bottle_obstacle,
+};
+
+fn model() -> CellModel {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/suite/fast_belt.toml");
+    let scenario = Scenario::load(&path).expect("scenario");
+    CellModel::new(scenario, &path).expect("model")
+}
+
+fn percept() -> Percept {
+    Percept {
+        part_type: PartTypeId(0),
+        part_xy: [0.0, 0.0],
+        part_outer_radius_m: 0.03,
+        part_height_m: 0.05,
+        roundness_mm: None,
+        bore_diameter_mm: None,
+        inconsistency: None,
+        unidentified: None,
+        obstacles: Vec::new(),
+    }
+}
+
+fn sighting(kind: ItemKind, along_m: f64, across_m: f64, half_length_m: f64) -> ItemSighting {
+    ItemSighting {
+        kind,
+        score: 0.9,
+        at: BeltPoint { along_m, across_m },
+        half_length_m,
+    }
+}
+
+/// Bottles and parts drawn over the view, then carried on by a drawn travel: each bottle track
+/// still on the belt (open, or carried out of the view) and away from the percept's bottles
+/// becomes one standing obstacle at its predicted place, as wide as its footprint was long; a
+/// part, a lost track, a bottle past the belt's end or beside a bottle the percept holds adds
+/// nothing.
+#[test]
+fn bottles_the_tracks_hold_on_the_belt_are_obstacles() {
+    let model = model();
+    let scenario = model.scenario();
+    let belt = &scenario.conveyor;
+    let top_z = 0.7;
+    let end_along_m = belt.belt_center_m[0] + belt.length_m / 2.0 - belt.photo_eye_x_m;
+    let mut rng = SimRng::new(2512);
+    for _ in 0..40 {
+        let mut tracking = BeltTracking::new(&model, top_z);
+        let view = tracking.view;
+        // Items in view at least 0.21 m apart (the percept's bottle below, 0.05 m from one,
+        // lies more than 0.1 m from every other).
+        let n = ((view.to_m - view.from_m - 0.02) / 0.21).floor() as usize + 1;
+        let items: Vec<ItemSighting> = (0..n)
+            .map(|i| {
+                let kind = if rng.uniform() < 0.5 {
+                    ItemKind::Bottle
+                } else {
+                    ItemKind::Part
+                };
+                let along = view.from_m + 0.01 + 0.21 * i as f64;
+                sighting(kind, along, rng.range(-0.1, 0.1), rng.range(0.02, 0.11))
+            })
+            .collect();
+        assert!(n >= 2, "a view of {:.2} m", view.to_m - view.from_m);
+        let ids = tracking.tracks.update(0, &items, &view);
+        // One track lost, and the belt carried on by up to the belt's far end and beyond.
+        let lost = ids[rng.below(n as u64) as usize];
+        tracking.tracks.close(lost, TrackEnd::Lost);
+        let travel_m = rng.range(0.0, end_along_m - view.from_m + 0.3);
+        let count = (travel_m / ENCODER_M_PER_COUNT).round() as i64;
+        tracking.tracks.update(count, &[], &view);
+        // The percept already holds a bottle where one drawn track now stands.
+        let mut percept = percept();
+        let known: Option<TrackId> = ids.iter().copied().find(|&id| id != lost);
+        let known_at = known.and_then(|id| tracking.tracks.predicted(id, count));
+        if let Some(at) = known_at {
+            let p = tracking.frame.world_from_belt(&BeltPoint {
+                along_m: at.along_m + 0.05,
+                ..at
+            });
+            let pose = Isometry3::translation(p.x, p.y, p.z);
+            percept
+                .obstacles
+                .push(bottle_obstacle(&scenario.bottle, &pose, false, 0.0));
+        }
+        let before = percept.obstacles.len();
+        tracking.add_tracked_bottles(&model, count, &mut percept);
+        let added = &percept.obstacles[before..];
+        let expected: Vec<(TrackId, Point3<f64>, f64)> = ids
+            .iter()
+            .zip(&items)
+            .filter(|&(&id, item)| item.kind == ItemKind::Bottle && id != lost)
+            .filter(|&(&id, _)| Some(id) != known)
+            .filter_map(|(&id, item)| {
+                let at = tracking.tracks.predicted(id, count)?;
+                (at.along_m <= end_along_m)
+                    .then(|| (id, tracking.frame.world_from_belt(&at), item.half_length_m))
+            })
+            .collect();
+        assert_eq!(added.len(), expected.len(), "travel {travel_m:.2} m");
+        for ((_, point, half_length_m), o) in expected.iter().zip(added) {
+            let c = o.world_from_shape.translation.vector;
+            assert!(
+                (c.x - point.x).hypot(c.y - point.y) < 1e-9,
+                "placed at the prediction"
+            );
+            assert!(
+                (o.top_z - (top_z + scenario.bottle.height_m)).abs() < 1e-9,
+                "standing"
+            );
+            let radius = o
+                .shape
+                .as_cylinder()
+                .map(|c| f64::from(c.radius))
+                .unwrap_or(0.0);
+            let wanted = scenario.bottle.radius_m.max(*half_length_m);
+            assert!(
+                (radius - wanted).abs() < 1e-6,
+                "radius {radius} for {wanted}"
+            );
+        }
+    }
+}
