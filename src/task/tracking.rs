@@ -9,7 +9,7 @@ use crate::cell::CellModel;
 use crate::control::ENCODER_M_PER_COUNT;
 use crate::outcome::{CollectedRecord, Failure, FailureReason, Phase};
 use crate::render::CameraRig;
-use crate::scenario::BottleSection;
+use crate::scenario::{BottleSection, ConveyorSection};
 use crate::station::{
     BeltFrame, BeltPoint, ItemKind, ItemSighting, Percept, SeenItem, Sighting, Track, TrackEnd,
     TrackId, TrackSet, TrackerParams, TubeEnvelope, ViewSpan, bottle_obstacle,
@@ -95,7 +95,7 @@ impl BeltTracking {
     pub(crate) fn add_tracked_bottles(&self, model: &CellModel, count: i64, percept: &mut Percept) {
         let scenario = model.scenario();
         let belt = &scenario.conveyor;
-        let end_along_m = belt.belt_center_m[0] + belt.length_m / 2.0 - belt.photo_eye_x_m;
+        let end_along_m = end_along_m(belt);
         let m = self.tracks.params().m_per_count;
         for track in self.tracks.tracks() {
             let riding = matches!(track.end, None | Some(TrackEnd::LeftView));
@@ -265,7 +265,7 @@ impl BeltTracking {
             return Ok(Vec::new());
         };
         let belt = &model.scenario().conveyor;
-        let end_along_m = belt.belt_center_m[0] + belt.length_m / 2.0 - belt.photo_eye_x_m;
+        let end_along_m = end_along_m(belt);
         let rearmost = passed
             .iter()
             .filter_map(|&id| self.tracks.predicted(id, Self::count(data)))
@@ -332,6 +332,11 @@ impl BeltTracking {
         }
         Ok(records)
     }
+}
+
+/// The belt's downstream end, along its travel from the station, m.
+fn end_along_m(belt: &ConveyorSection) -> f64 {
+    belt.belt_center_m[0] + belt.length_m / 2.0 - belt.photo_eye_x_m
 }
 
 #[cfg(test)]
