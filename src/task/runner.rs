@@ -7,7 +7,7 @@ use std::time::Instant;
 use super::cell_data::CellData;
 use super::observer::{CellView, PerceptionFrame, TrialObserver, TrialObserverFactory};
 use super::sorter::{Sorter, planner_for};
-use crate::cell::{CellError, CellModel};
+use crate::cell::{CellError, CellModel, StationSight};
 use crate::detect::DetectorModel;
 use crate::outcome::{FailureReason, Perception, TrialRecord, TrialRunner};
 use crate::planning::PickPlanner;
@@ -75,6 +75,14 @@ impl CellTrialRunner {
             Perception::Oracle => None,
         };
         let model = CellModel::new(scenario, scenario_path)?;
+        if camera.is_some() {
+            let sight = StationSight::of(&model)?;
+            tracing::debug!("the camera's sight of the pick station: {sight:?}");
+            sight.check()?;
+            if let Some(warning) = sight.partial_warning() {
+                tracing::warn!("{warning}");
+            }
+        }
         Ok(Self {
             model,
             camera,
