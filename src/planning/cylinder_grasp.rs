@@ -99,7 +99,7 @@ struct Candidate {
 impl PickPlanner {
     /// How far above the TCP the gripper's palm (the lowest face of the body the fingers hang
     /// from) sits along the tool axis, m.
-    fn palm_above_tcp_m(&self) -> f64 {
+    pub(super) fn palm_above_tcp_m(&self) -> f64 {
         let tcp_z = self.model.flange_from_tcp.translation.z;
         let palm_z = self
             .robot_shapes

@@ -131,7 +131,7 @@ impl<'a> GraspSearch<'a> {
     ) -> Self {
         let belt_top = planner.belt_top_z;
         let [x, y] = percept.part_xy;
-        let grasp_z = belt_top + super::GRASP_TCP_ABOVE_BOTTOM_M;
+        let grasp_z = belt_top + planner.grasp_tcp_above_bottom_m(percept.part_height_m);
         let obstacle_top = percept
             .obstacles
             .iter()

@@ -30,8 +30,8 @@ pub use grasp_search::{
 pub use intercept::{Intercept, InterceptProblem};
 pub use payload::{GRIP_SAFETY_FACTOR, Payload};
 pub use pick_planner::{
-    GRASP_TCP_ABOVE_BOTTOM_M, PART_OBSTACLE, PickPlan, PickPlanner, PlacePlan, PlaceSpot, bin_slot,
-    drop_second_looks, scenery_obstacles,
+    GRASP_TCP_ABOVE_BOTTOM_M, PALM_CLEARANCE_M, PART_OBSTACLE, PickPlan, PickPlanner, PlacePlan,
+    PlaceSpot, bin_slot, drop_second_looks, scenery_obstacles,
 };
 pub use robot_shapes::capture_robot_shapes;
 pub use straight_line::straight_line;

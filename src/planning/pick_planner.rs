@@ -15,9 +15,12 @@ use crate::kinematics::{AnalyticIk, ArmModel, IkSolver, JointVector};
 use crate::outcome::{Failure, FailureReason, fail};
 use crate::station::Percept;
 
-/// Height of the TCP above the part's bottom while grasping: the fingertips stop 8 mm above the
-/// belt.
+/// Height of the TCP above the part's bottom while grasping a tube short enough to clear the
+/// gripper's palm from there: the fingertips stop 8 mm above the belt
+/// ([`PickPlanner::grasp_tcp_above_bottom_m`] grips a taller one higher).
 pub const GRASP_TCP_ABOVE_BOTTOM_M: f64 = 0.023;
+/// Least gap between a grasped tube's top and the gripper's palm, m.
+pub const PALM_CLEARANCE_M: f64 = 0.005;
 /// Approach and retreat distance above grasp and place poses, m.
 pub(super) const APPROACH_M: f64 = 0.12;
 /// How far the fingertips reach below the TCP along the tool axis, m.
@@ -351,16 +354,23 @@ impl PickPlanner {
         })
     }
 
+    /// Height of the TCP above the bottom of a standing tube `part_height_m` tall while the
+    /// jaws hold it: [`GRASP_TCP_ABOVE_BOTTOM_M`], or as much higher as keeps the tube's top
+    /// [`PALM_CLEARANCE_M`] below the palm. Gripped low, a tube taller than the fingers reach
+    /// would be pressed into the belt by the gripper's body (a 100 mm tube under the shipped
+    /// gripper, whose palm stands 75 mm above the TCP).
+    pub fn grasp_tcp_above_bottom_m(&self, part_height_m: f64) -> f64 {
+        let palm_clear = part_height_m + PALM_CLEARANCE_M - self.palm_above_tcp_m();
+        GRASP_TCP_ABOVE_BOTTOM_M.max(palm_clear)
+    }
+
     /// `percept`'s part as the jaws carry it: a cylinder standing in the TCP frame, its
     /// bottom the grasp height below the TCP.
     pub fn carried_for(&self, percept: &Percept) -> Carried {
+        let above_bottom = self.grasp_tcp_above_bottom_m(percept.part_height_m);
         Carried {
             tcp_from_shape: Isometry3::from_parts(
-                Translation3::new(
-                    0.0,
-                    0.0,
-                    -(percept.part_height_m / 2.0 - GRASP_TCP_ABOVE_BOTTOM_M),
-                ),
+                Translation3::new(0.0, 0.0, -(percept.part_height_m / 2.0 - above_bottom)),
                 UnitQuaternion::from_euler_angles(std::f64::consts::FRAC_PI_2, 0.0, 0.0),
             ),
             shape: SharedShape::cylinder(
@@ -383,8 +393,9 @@ impl PickPlanner {
         checker: &CollisionChecker,
     ) -> Result<PlacePlan, Failure> {
         let floor = bin.floor_center + bin_slot(bin, placed_before);
-        let place_z = floor.z + 0.012 + GRASP_TCP_ABOVE_BOTTOM_M;
-        let above_z = floor.z + bin.wall_height + 0.04 + GRASP_TCP_ABOVE_BOTTOM_M;
+        let above_bottom = self.grasp_tcp_above_bottom_m(percept.part_height_m);
+        let place_z = floor.z + 0.012 + above_bottom;
+        let above_z = floor.z + bin.wall_height + 0.04 + above_bottom;
         let carried = self.carried_for(percept);
         let spot = PlaceSpot {
             xy: [floor.x, floor.y],
