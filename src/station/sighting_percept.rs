@@ -183,8 +183,16 @@ impl Sighting {
         }
         for other in &self.other_parts {
             let p = other.centre_in_world;
+            let other_type = station.catalogue.part(PartTypeId(other.type_index));
+            // Two standing tubes never overlap: one whose axis stands inside the target's
+            // footprint, or the target's inside its own, is the target boxed twice (the end
+            // face and the whole tube, from a tilted camera), not a tube beside it. Tubes that
+            // touch stand the sum of their radii apart, clear of this by the smaller radius.
+            let apart = (p.x - centre.x).hypot(p.y - centre.y);
+            if apart < kind.outer_radius_m().max(other_type.outer_radius_m()) {
+                continue;
+            }
             if near(p.x, p.y) {
-                let other_type = station.catalogue.part(PartTypeId(other.type_index));
                 let height_m = other_type.height_m;
                 obstacles.push(part_obstacle(
                     &Point3::new(p.x, p.y, station.belt_top_z + height_m / 2.0),
@@ -534,3 +542,7 @@ mod tests {
         assert!(left >= 100, "only {left} left alone");
     }
 }
+
+#[cfg(test)]
+#[path = "duplicate_tube_tests.rs"]
+mod duplicate_tube_tests;
