@@ -432,6 +432,9 @@ impl PickPlanner {
         let carry = self.carry_speed_fraction;
         let mut reachable = false;
         let mut last_hit = String::new();
+        // The lift off the belt is the same whatever the place: timed once.
+        let lift = JointTrajectory::along(&self.model, pick.lift_path.clone(), carry)
+            .with_tool_limits(&self.model, &grip_limits);
         for &yaw_deg in spot.yaws_deg.unwrap_or(&PLACE_YAWS_DEG) {
             let yaw = f64::to_radians(yaw_deg);
             let tilt = spot.tilt_rad;
@@ -451,16 +454,24 @@ impl PickPlanner {
                 let mut up = down.clone();
                 up.reverse();
                 reachable = true;
-                let lift = JointTrajectory::along(&self.model, pick.lift_path.clone(), carry)
+                let ignore = [PART_OBSTACLE];
+                let lower = JointTrajectory::along(&self.model, down, carry)
                     .with_tool_limits(&self.model, &grip_limits);
+                // The way down into the bin first: where it hits, the carry there is not timed.
+                if let Some(hit) = checker.check_trajectory(&lower, grip, Some(carried), &ignore) {
+                    last_hit = format!(
+                        "{} would hit {} placing at yaw {yaw_deg} deg",
+                        hit.link, hit.obstacle
+                    );
+                    continue;
+                }
+                let lift = lift.clone();
                 let transport = JointTrajectory::through(&self.model, &[*q_start, q_above], carry)
                     .with_tool_limits(&self.model, &grip_limits);
                 // The carry limit holds for the blended whole: the slow-down of the lift and
                 // the start over to the bin add up at the TCP.
                 let carry_move = JointTrajectory::join(vec![lift, transport], true)
                     .within_tool_limits(&self.model, &grip_limits);
-                let lower = JointTrajectory::along(&self.model, down, carry)
-                    .with_tool_limits(&self.model, &grip_limits);
                 let retreat = JointTrajectory::join(
                     vec![
                         JointTrajectory::along(&self.model, up, speed),
@@ -468,15 +479,11 @@ impl PickPlanner {
                     ],
                     true,
                 );
-                let ignore = [PART_OBSTACLE];
                 // From where the move over to the bin starts: before that the part rises
                 // straight off the belt it stands on.
                 let over_s = (carry_move.part_starts_s()[1], carry_move.duration_s());
                 let hit = checker
-                    .check_trajectory(&lower, grip, Some(carried), &ignore)
-                    .or_else(|| {
-                        checker.check_span(&carry_move, over_s, grip, Some(carried), &ignore)
-                    })
+                    .check_span(&carry_move, over_s, grip, Some(carried), &ignore)
                     .or_else(|| checker.check_trajectory(&retreat, open, None, &ignore));
                 match hit {
                     Some(hit) => {

@@ -312,7 +312,13 @@ impl JointTrajectory {
     /// The same path slowed down just enough that the TCP of `arm` stays within `limits`
     /// (measured along the trajectory by forward kinematics).
     pub fn within_tool_limits(self, arm: &ArmModel, limits: &ToolLimits) -> Self {
-        let (speed, accel) = self.peak_tool_motion(arm);
+        let peaks = self.peak_tool_motion(arm);
+        self.within_peaks(peaks, limits)
+    }
+
+    /// [`Self::within_tool_limits`] for a trajectory whose peak TCP speed and acceleration
+    /// (`peak_tool_motion`) are `(speed, accel)`.
+    fn within_peaks(self, (speed, accel): (f64, f64), limits: &ToolLimits) -> Self {
         let factor = (speed / limits.speed_m_s.max(1e-9))
             .max((accel / limits.accel_m_s2.max(1e-9)).sqrt())
             .max(1.0);
@@ -329,13 +335,14 @@ impl JointTrajectory {
     /// slowed down uniformly if the TCP still breaks `limits`. For a trajectory without blends;
     /// one with blends is only slowed down uniformly.
     pub fn with_tool_limits(self, arm: &ArmModel, limits: &ToolLimits) -> Self {
-        let (speed, _) = self.peak_tool_motion(arm);
+        let peaks = self.peak_tool_motion(arm);
+        let speed = peaks.0;
         let blended = self
             .segments
             .windows(2)
             .any(|w| w[1].start_s + END_TOLERANCE_S < w[0].start_s + w[0].scaling.duration_s());
         if speed <= limits.speed_m_s || blended {
-            return self.within_tool_limits(arm, limits);
+            return self.within_peaks(peaks, limits);
         }
         // The TCP's speed is linear in the joint rates at each point of the path.
         let factor = limits.speed_m_s / speed / 1.02;
