@@ -5,7 +5,7 @@ use nalgebra::Isometry3;
 use super::{LinkMount, RobotShape};
 use crate::kinematics::{ArmModel, DOF, link_frames};
 use crate::math::pose_from_physics;
-use crate::sim::{SimArm, World};
+use crate::sim::{FINGER_LINKS, SimArm, World};
 
 /// The robot's collision shapes, mounted on DH frames, captured from the simulated arm standing
 /// at `q` (before the world has stepped).
@@ -20,17 +20,19 @@ pub fn capture_robot_shapes(
     let mut shapes = Vec::new();
     for link in arm.links() {
         let name = &link.name;
-        let mount = match name.as_str() {
-            // The base and shoulder sit on the pedestal by design; they are not checked.
-            "shoulder_Link" | "base_link" => continue,
-            "upperArm_Link" => LinkMount::Dh(2),
-            "foreArm_Link" => LinkMount::Dh(3),
-            "wrist1_Link" => LinkMount::Dh(4),
-            "wrist2_Link" => LinkMount::Dh(5),
-            "wrist3_Link" | "gripper_Link" => LinkMount::Dh(6),
-            "finger_left_Link" => LinkMount::Finger { sign: 1.0 },
-            "finger_right_Link" => LinkMount::Finger { sign: -1.0 },
-            _ => continue,
+        // Each link by the joint that moves it, whatever the URDF calls it; the fingers are
+        // the twin's own gripper's, named by it.
+        let mount = if name == FINGER_LINKS[0] {
+            LinkMount::Finger { sign: 1.0 }
+        } else if name == FINGER_LINKS[1] {
+            LinkMount::Finger { sign: -1.0 }
+        } else {
+            match arm.joint_moving(link) {
+                // The base and the shoulder (the first joint's link) sit on the pedestal by
+                // design; they are not checked.
+                None | Some(0) => continue,
+                Some(joint) => LinkMount::Dh(joint + 1),
+            }
         };
         let mount_frame = match mount {
             LinkMount::Dh(k) => frames[k],

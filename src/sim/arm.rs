@@ -59,6 +59,8 @@ pub struct ArmLink {
 pub struct SimArm {
     /// The servo drive's index of the link each arm joint moves.
     joints: [usize; DOF],
+    /// The body each arm joint moves, base to flange.
+    joint_bodies: [RigidBodyHandle; DOF],
     /// The pads' separation with the jaws closed on nothing, m.
     closed_gap_m: f64,
     flange_body: RigidBodyHandle,
@@ -287,6 +289,7 @@ impl SimArm {
         };
         let arm = Self {
             joints,
+            joint_bodies: joints.map(|link| bodies[link]),
             closed_gap_m,
             flange_body,
             links,
@@ -317,6 +320,13 @@ impl SimArm {
         self.links
             .iter()
             .find(|link| link.colliders.contains(&collider))
+    }
+
+    /// Which arm joint moves `link`, base to flange from 0, whatever the links are called: the
+    /// joint whose own link's body carries it (a link fixed to another rides on its body).
+    /// `None` for the root and what is fixed to it, and for the fingers' own slides.
+    pub fn joint_moving(&self, link: &ArmLink) -> Option<usize> {
+        self.joint_bodies.iter().position(|body| *body == link.body)
     }
 
     /// The body that carries the link named `name`.
