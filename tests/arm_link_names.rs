@@ -75,30 +75,15 @@ fn renamed_links_get_the_same_collision_shapes_on_the_same_frames() {
 fn a_renamed_arm_sorts_the_same_trials_the_same_way() {
     let dir = common::out_dir("arm_link_names", "runs");
     std::fs::write(dir.join("renamed.urdf"), renamed_urdf()).expect("write urdf");
-    let base = common::scenario_path("paper_50.toml");
     let mut records = Vec::new();
     for (name, robot) in [
         ("shipped", String::new()),
         ("renamed", "[robot]\nurdf = \"renamed.urdf\"\n".to_owned()),
     ] {
-        let file = dir.join(format!("{name}.toml"));
-        let text = format!(
-            "extends = {:?}\nname = \"arm\"\ntrials = 6\n{robot}",
-            common::path_str(&base)
-        );
-        std::fs::write(&file, text).expect("write scenario");
+        let body = format!("name = \"arm\"\ntrials = 6\n{robot}");
+        let file = common::extending(&dir, name, "paper_50.toml", &body);
         let out = dir.join(name);
-        let (code, stdout, stderr) = common::twincell(&[
-            "run",
-            common::path_str(&file),
-            "--perception",
-            "oracle",
-            "--jobs",
-            "2",
-            "--out",
-            common::path_str(&out),
-        ]);
-        assert_eq!(code, 0, "{stdout}{stderr}");
+        common::run_oracle(&file, &out);
         records.push(common::without_timing(&out));
     }
     assert_eq!(records[0].len(), 6);

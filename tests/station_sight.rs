@@ -197,17 +197,13 @@ fn every_shipped_camera_sees_the_whole_station() {
 #[test]
 fn run_refuses_a_camera_the_arm_hides() {
     let dir = common::out_dir("station_sight", "hidden");
-    let scenario = dir.join("hidden.toml");
-    let base = common::scenario_path("paper_50.toml");
-    std::fs::write(
-        &scenario,
-        format!(
-            "extends = {:?}\nname = \"hidden\"\ntrials = 2\n[camera]\n\
-             position_m = [0.05, -0.196, 1.244]\nlook_at_m = [0.05, -0.45, 0.70]\n",
-            common::path_str(&base)
-        ),
-    )
-    .expect("write");
+    let scenario = common::extending(
+        &dir,
+        "hidden",
+        "paper_50.toml",
+        "name = \"hidden\"\ntrials = 2\n[camera]\n\
+         position_m = [0.05, -0.196, 1.244]\nlook_at_m = [0.05, -0.45, 0.70]\n",
+    );
     let out = dir.join("out");
     let (code, _, stderr) = common::twincell(&[
         "run",
@@ -225,13 +221,5 @@ fn run_refuses_a_camera_the_arm_hides() {
     );
     assert!(!Path::new(&out).join("trials.jsonl").exists());
     // Oracle perception needs no camera: the same file runs.
-    let (code, _, stderr) = common::twincell(&[
-        "run",
-        common::path_str(&scenario),
-        "--perception",
-        "oracle",
-        "--out",
-        common::path_str(&out),
-    ]);
-    assert_eq!(code, 0, "{stderr}");
+    common::run_oracle(&scenario, &out);
 }

@@ -44,22 +44,11 @@ fn tall_catalogue(seed: u64, count: usize) -> String {
     text
 }
 
-/// Runs `scenario_text` (written to `dir`) in oracle mode; returns its records.
-fn run(dir: &Path, scenario_text: &str) -> Vec<Value> {
-    let file = dir.join("tall.toml");
-    std::fs::write(&file, scenario_text).expect("write scenario");
+/// Runs `body` over the shipped scenario `base` in oracle mode in `dir`; returns its records.
+fn run(dir: &Path, base: &str, body: &str) -> Vec<Value> {
+    let file = common::extending(dir, "tall", base, body);
     let out = dir.join("out");
-    let (code, stdout, stderr) = common::twincell(&[
-        "run",
-        common::path_str(&file),
-        "--perception",
-        "oracle",
-        "--jobs",
-        "2",
-        "--out",
-        common::path_str(&out),
-    ]);
-    assert_eq!(code, 0, "{stdout}{stderr}");
+    common::run_oracle(&file, &out);
     common::read(&out.join("trials.jsonl"))
         .lines()
         .map(|l| serde_json::from_str(l).expect("record"))
@@ -69,13 +58,11 @@ fn run(dir: &Path, scenario_text: &str) -> Vec<Value> {
 #[test]
 fn tall_tubes_are_held_without_sliding_from_a_stopped_belt() {
     let dir = common::out_dir("tall_tubes", "stopped");
-    let base = common::scenario_path("paper_50.toml");
-    let text = format!(
-        "extends = {:?}\nname = \"tall_stopped\"\ntrials = 12\n\n{}",
-        common::path_str(&base),
+    let body = format!(
+        "name = \"tall_stopped\"\ntrials = 12\n\n{}",
         tall_catalogue(95, 3)
     );
-    let records = run(&dir, &text);
+    let records = run(&dir, "paper_50.toml", &body);
     assert_eq!(records.len(), 12);
     for r in &records {
         let drift = r["motion"]["grip_drift_mm"].as_f64().unwrap_or(f64::NAN);
@@ -87,14 +74,12 @@ fn tall_tubes_are_held_without_sliding_from_a_stopped_belt() {
 #[test]
 fn tall_tubes_are_held_without_sliding_from_a_moving_belt() {
     let dir = common::out_dir("tall_tubes", "moving");
-    let base = common::scenario_path("stream.toml");
-    let text = format!(
-        "extends = {:?}\nname = \"tall_moving\"\ntrials = 3\nparts_per_trial = 5\n\n\
+    let body = format!(
+        "name = \"tall_moving\"\ntrials = 3\nparts_per_trial = 5\n\n\
          [conveyor]\ntracking = true\n\n{}",
-        common::path_str(&base),
         tall_catalogue(120, 3)
     );
-    let records = run(&dir, &text);
+    let records = run(&dir, "stream.toml", &body);
     assert_eq!(records.len(), 3);
     let mut parts = 0;
     for r in &records {

@@ -7,7 +7,8 @@ use std::path::{Path, PathBuf};
 use super::layout::CellError;
 use crate::kinematics::{AnalyticIk, ArmModel, BUILTIN_URDF, BUILTIN_URDF_PATH, UrdfArm};
 use crate::scenario::{Catalogue, Scenario};
-use crate::sim::SimError;
+use crate::sim::{SimArm, SimError, World, WorldParams};
+use nalgebra::Isometry3;
 
 /// A robot description: where it was read from (named in errors, anchoring mesh paths) and
 /// its text.
@@ -126,5 +127,20 @@ impl CellModel {
     /// The closed-form inverse kinematics of the arm.
     pub fn ik(&self) -> &AnalyticIk {
         &self.ik
+    }
+
+    /// A physics world of the scenario's `[physics]` holding the arm alone, its base where the
+    /// scenario puts it (the arm as loaded, not yet at home).
+    pub fn arm_world(&self) -> Result<(World, SimArm), SimError> {
+        let mut world = World::new(WorldParams::from_section(&self.scenario.physics));
+        let [x, y, z] = self.scenario.robot.base_xyz_m;
+        let arm = SimArm::from_urdf_with(
+            &mut world,
+            &self.urdf.text,
+            &self.urdf.path,
+            Some(&self.arm),
+            Isometry3::translation(x, y, z),
+        )?;
+        Ok((world, arm))
     }
 }

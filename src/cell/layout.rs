@@ -11,8 +11,12 @@ use crate::rng::SimRng;
 use crate::scenario::Scenario;
 use crate::sim::{
     BELT_ACCEL_M_S2, BottlePlacement, CellHooks, ConveyorHooks, FINGER_LINKS, ItemSet, PadStiction,
-    PartInstance, SimArm, SimError, Tag, World, WorldParams, body_pose, groups, set_body_velocity,
+    PartInstance, SimArm, SimError, Tag, World, body_pose, groups, set_body_velocity,
 };
+
+/// The pads' offset from the centre line with which the arm stands at home, m: where the
+/// planner captures the fingers' shapes.
+pub(super) const FINGER_REFERENCE_M: f64 = 0.045;
 
 /// Why a cell could not be built.
 #[derive(Debug, thiserror::Error)]
@@ -179,17 +183,8 @@ impl Cell {
     /// from `rng`, the arm at home.
     pub fn build(model: &CellModel, rng: &mut SimRng) -> Result<Self, CellError> {
         let scenario = model.scenario();
-        let mut world = World::new(WorldParams::from_section(&scenario.physics));
+        let (mut world, arm) = model.arm_world()?;
         let base = scenario.robot.base_xyz_m;
-        let world_from_base = Isometry3::translation(base[0], base[1], base[2]);
-        let urdf = model.urdf();
-        let arm = SimArm::from_urdf_with(
-            &mut world,
-            &urdf.text,
-            &urdf.path,
-            Some(model.arm()),
-            world_from_base,
-        )?;
         let mut builder = Builder {
             world: &mut world,
             scenery: Vec::new(),
@@ -348,7 +343,7 @@ impl Cell {
         }
 
         let home = scenario.robot.home_q_rad;
-        let finger_reference_m = 0.045;
+        let finger_reference_m = FINGER_REFERENCE_M;
         arm.reset_to(&mut world, &home, finger_reference_m);
         arm.dress_colliders(&mut world, scenario.gripper.pad_friction);
         let pads = PadStiction::new(

@@ -9,10 +9,10 @@ use nalgebra::{Isometry3, Point3, Vector3};
 use rapier3d::prelude::{Pose, Ray, SharedShape, Vector};
 
 use super::cell_model::CellModel;
-use super::layout::CellError;
+use super::layout::{CellError, FINGER_REFERENCE_M};
 use crate::math::{pose_from_physics, pose_to_physics};
 use crate::scenario::CameraSection;
-use crate::sim::{SimArm, World, WorldParams};
+use crate::sim::{SimArm, World};
 
 /// Least distance between the camera's centre and the arm at home, m: a camera's housing
 /// reaches at least this far from its centre (and the renderer clips what lies nearer than its
@@ -43,17 +43,8 @@ impl StationSight {
     /// `robot.home_q_rad`.
     pub fn of(model: &CellModel) -> Result<Self, CellError> {
         let scenario = model.scenario();
-        let mut world = World::new(WorldParams::from_section(&scenario.physics));
-        let [bx, by, bz] = scenario.robot.base_xyz_m;
-        let urdf = model.urdf();
-        let arm = SimArm::from_urdf_with(
-            &mut world,
-            &urdf.text,
-            &urdf.path,
-            Some(model.arm()),
-            Isometry3::translation(bx, by, bz),
-        )?;
-        arm.reset_to(&mut world, &scenario.robot.home_q_rad, 0.045);
+        let (mut world, arm) = model.arm_world()?;
+        arm.reset_to(&mut world, &scenario.robot.home_q_rad, FINGER_REFERENCE_M);
 
         let (eye, _) = scenario.camera.eye_and_target(&scenario.conveyor);
         let eye = Point3::from(eye);
@@ -142,8 +133,7 @@ impl StationSight {
     /// A warning for a station partly hidden, `None` when every line is clear or the centre is
     /// hidden or the camera stands in the arm (then [`Self::check`] refuses).
     pub fn partial_warning(&self) -> Option<String> {
-        let refused = self.center_blocked || self.eye_clearance_m < MIN_EYE_CLEARANCE_M;
-        (self.blocked > 0 && !refused).then(|| {
+        (self.blocked > 0 && self.check().is_ok()).then(|| {
             format!(
                 "camera.position_m: the robot at robot.home_q_rad ({}) blocks {} of {} lines of \
                  sight to the end faces at the pick station; parts standing there may go \

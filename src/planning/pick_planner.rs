@@ -458,11 +458,14 @@ impl PickPlanner {
                 let lower = JointTrajectory::along(&self.model, down, carry)
                     .with_tool_limits(&self.model, &grip_limits);
                 // The way down into the bin first: where it hits, the carry there is not timed.
-                if let Some(hit) = checker.check_trajectory(&lower, grip, Some(carried), &ignore) {
-                    last_hit = format!(
+                let placing_hit = |hit: super::CollisionHit| {
+                    format!(
                         "{} would hit {} placing at yaw {yaw_deg} deg",
                         hit.link, hit.obstacle
-                    );
+                    )
+                };
+                if let Some(hit) = checker.check_trajectory(&lower, grip, Some(carried), &ignore) {
+                    last_hit = placing_hit(hit);
                     continue;
                 }
                 let lift = lift.clone();
@@ -486,12 +489,7 @@ impl PickPlanner {
                     .check_span(&carry_move, over_s, grip, Some(carried), &ignore)
                     .or_else(|| checker.check_trajectory(&retreat, open, None, &ignore));
                 match hit {
-                    Some(hit) => {
-                        last_hit = format!(
-                            "{} would hit {} placing at yaw {yaw_deg} deg",
-                            hit.link, hit.obstacle
-                        )
-                    }
+                    Some(hit) => last_hit = placing_hit(hit),
                     None => {
                         return Ok(PlacePlan {
                             carry: carry_move,

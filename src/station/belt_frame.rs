@@ -190,8 +190,6 @@ impl BeltFrame {
 
 #[cfg(test)]
 mod tests {
-    use image::RgbImage;
-
     use super::*;
     use crate::detect::Detection;
     use crate::station::PartSighting;
@@ -229,15 +227,14 @@ mod tests {
             a[0].max(b[0]),
             a[1].max(b[1]),
         ];
-        Sighting {
-            image: RgbImage::new(1, 1),
-            detections: vec![Detection {
+        Sighting::of_parts(
+            vec![Detection {
                 class_id: 0,
                 class_name: "tube".into(),
                 score: 0.9,
                 box_px: box_px.map(|v| v as f32),
             }],
-            target: Some(PartSighting {
+            Some(PartSighting {
                 detection: 0,
                 type_index: 0,
                 centre_in_world: Point3::new((x0 + x1) / 2.0, -0.45, BELT_TOP_Z + 0.06),
@@ -245,13 +242,8 @@ mod tests {
                 inconsistency: None,
                 unidentified: None,
             }),
-            other_parts: Vec::new(),
-            bottles: Vec::new(),
-            at_station: None,
-            render_ms: 0.0,
-            detect_ms: 0.0,
-            metrology_ms: 0.0,
-        }
+            Vec::new(),
+        )
     }
 
     #[test]

@@ -1,7 +1,6 @@
 //! A tube boxed twice (its end face and its whole body, from a tilted camera) is one tube: the
 //! second box is not an obstacle beside the target; a tube touching the target is.
 
-use image::RgbImage;
 use nalgebra::Point3;
 
 use super::*;
@@ -23,17 +22,7 @@ fn part(type_index: usize, x: f64, y: f64) -> PartSighting {
 }
 
 fn sighting(target: PartSighting, others: Vec<PartSighting>) -> Sighting {
-    Sighting {
-        image: RgbImage::new(1, 1),
-        detections: Vec::new(),
-        target: Some(target),
-        other_parts: others,
-        bottles: Vec::new(),
-        at_station: None,
-        render_ms: 0.0,
-        detect_ms: 0.0,
-        metrology_ms: 0.0,
-    }
+    Sighting::of_parts(Vec::new(), Some(target), others)
 }
 
 #[test]

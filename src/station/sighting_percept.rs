@@ -544,5 +544,28 @@ mod tests {
 }
 
 #[cfg(test)]
+impl Sighting {
+    /// A look that found `target` and `other_parts` in `detections` and nothing else (a blank
+    /// image, no bottles, no timings), for tests of what follows from it.
+    pub(super) fn of_parts(
+        detections: Vec<crate::detect::Detection>,
+        target: Option<super::PartSighting>,
+        other_parts: Vec<super::PartSighting>,
+    ) -> Self {
+        Self {
+            image: image::RgbImage::new(1, 1),
+            detections,
+            target,
+            other_parts,
+            bottles: Vec::new(),
+            at_station: None,
+            render_ms: 0.0,
+            detect_ms: 0.0,
+            metrology_ms: 0.0,
+        }
+    }
+}
+
+#[cfg(test)]
 #[path = "duplicate_tube_tests.rs"]
 mod duplicate_tube_tests;

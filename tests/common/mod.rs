@@ -54,6 +54,31 @@ pub fn paper_50() -> Scenario {
     scenario("paper_50.toml")
 }
 
+/// `dir/NAME.toml`: the shipped scenario `base` (its path under `scenarios/`) extended by
+/// `body` (TOML keys and tables).
+pub fn extending(dir: &Path, name: &str, base: &str, body: &str) -> PathBuf {
+    let file = dir.join(format!("{name}.toml"));
+    let text = format!("extends = {:?}\n{body}", path_str(&scenario_path(base)));
+    std::fs::write(&file, text).unwrap_or_else(|e| panic!("{}: {e}", file.display()));
+    file
+}
+
+/// Runs `scenario` with oracle perception on 2 jobs into `out`; panics with its output unless
+/// it exits 0.
+pub fn run_oracle(scenario: &Path, out: &Path) {
+    let (code, stdout, stderr) = twincell(&[
+        "run",
+        path_str(scenario),
+        "--perception",
+        "oracle",
+        "--jobs",
+        "2",
+        "--out",
+        path_str(out),
+    ]);
+    assert_eq!(code, 0, "{stdout}{stderr}");
+}
+
 /// An empty directory `group/name` under the tests' temporary folder.
 pub fn out_dir(group: &str, name: &str) -> PathBuf {
     let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
