@@ -1,6 +1,6 @@
 //! Collision checking of planned arm motion against the cell's static obstacles, with parry.
 
-use nalgebra::{Isometry3, Translation3};
+use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use rapier3d::geometry::SharedShape;
 use rapier3d::math::Vector;
 use rapier3d::parry::bounding_volume::{Aabb, BoundingVolume};
@@ -62,6 +62,19 @@ pub struct Carried {
     pub tcp_from_shape: Isometry3<f64>,
     /// The shape.
     pub shape: SharedShape,
+}
+
+impl Carried {
+    /// The body as held by a tool leaning `tilt_rad` about its jaw line (the TCP's x axis) at
+    /// the grasp: turned by the opposite lean about the TCP.
+    pub fn leaning(&self, tilt_rad: f64) -> Self {
+        let turn = UnitQuaternion::from_axis_angle(&Vector3::x_axis(), -tilt_rad);
+        Self {
+            tcp_from_shape: Isometry3::from_parts(Translation3::identity(), turn)
+                * self.tcp_from_shape,
+            shape: self.shape.clone(),
+        }
+    }
 }
 
 /// The first collision found along a motion.

@@ -14,6 +14,8 @@ mod pick_planner;
 #[cfg(test)]
 mod pick_planner_tests;
 #[cfg(test)]
+mod lean_place_tests;
+#[cfg(test)]
 mod second_look_tests;
 mod robot_shapes;
 mod straight_line;

@@ -55,6 +55,9 @@ pub struct PickPlan {
     pub clearance_m: f64,
     /// How many candidate grasps the search weighed.
     pub candidates: usize,
+    /// The tool's lean about its jaw line at the grasp, rad (0: pointing straight down); the
+    /// part stands at this angle to the tool while it is held.
+    pub tilt_rad: f64,
 }
 
 /// The motion of a place: up and over to the bin, down into it, back home.
@@ -350,6 +353,7 @@ impl PickPlanner {
                 lift_end: q_lift,
                 clearance_m: grasp.clearance_m,
                 candidates: 0,
+                tilt_rad: grasp.pose.tilt_rad,
             }),
         })
     }
@@ -409,6 +413,26 @@ impl PickPlanner {
         let grip = percept.part_outer_radius_m;
         let open = self.open_offset_m(percept);
         let limits = payload.tool_limits();
+        // A part gripped with the tool leaning stands at that lean to the tool: set down with
+        // the tool pointing straight down it meets the floor leaning. A tube leaning further
+        // than its diameter over its height lets its centre of mass pass its edge and falls
+        // over in the bin (then lies across the next slot): such a part is set down with the
+        // same lean, standing, where that place is clear. One that rights itself on the floor
+        // is set down as before.
+        let tips_over =
+            pick.tilt_rad.abs() > (2.0 * percept.part_outer_radius_m).atan2(percept.part_height_m);
+        if tips_over {
+            let upright = PlaceSpot {
+                tilt_rad: pick.tilt_rad,
+                ..spot
+            };
+            let leaning = carried.leaning(pick.tilt_rad);
+            let place =
+                self.place_carried(&leaning, (grip, open), &upright, pick, &limits, checker);
+            if place.is_ok() {
+                return place;
+            }
+        }
         self.place_carried(&carried, (grip, open), &spot, pick, &limits, checker)
     }
 

@@ -302,6 +302,7 @@ impl Sorter<'_> {
             lift_path: path,
             clearance_m: pick.clearance_m,
             candidates: pick.candidates,
+            tilt_rad: pick.tilt_rad,
         };
         let mut percept = shifted(&item.percept, lift_x - item.percept.part_xy[0]);
         let bin_body = &data.cell.bins[bin.0];
@@ -337,7 +338,11 @@ impl Sorter<'_> {
             let carry =
                 JointTrajectory::join(vec![lift, transport], true).within_tool_limits(arm, &limits);
             let over_s = (carry.part_starts_s()[1], carry.duration_s());
-            let carried = planner.carried_for(&percept);
+            let carried = if lifted.tilt_rad == 0.0 {
+                planner.carried_for(&percept)
+            } else {
+                planner.carried_for(&percept).leaning(lifted.tilt_rad)
+            };
             let grip = percept.part_outer_radius_m;
             let hit = checker.check_span(&carry, over_s, grip, Some(&carried), &[PART_OBSTACLE]);
             if hit.is_none() && carry.duration_s() < place.carry.duration_s() {
