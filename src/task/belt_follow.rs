@@ -174,6 +174,10 @@ impl Sorter<'_> {
                             limit_x: None,
                             backoff_m: HOLD_BACKOFF_M,
                         };
+                        if let (Some(tracking), Some(id)) = (self.tracking.as_mut(), track) {
+                            let seen = &item.percept;
+                            tracking.note_size(id, seen.part_outer_radius_m, seen.part_height_m);
+                        }
                         item.limit_x = self.standing_limit(model, data, &item, watch.window);
                         watch.parts.push_back(item);
                     }

@@ -22,6 +22,8 @@ use super::sorter::Sorter;
 use super::tracking_plan::Meet;
 use crate::cell::CellModel;
 use crate::control::BELT_ACCEL_M_S2;
+use crate::outcome::Failure;
+use crate::station::TargetRule;
 
 /// A belt is held when a part would come to a stand within this distance of its standing
 /// limit (upstream of it), m: clear of the reach's edge, where the arm stands near a limit.
@@ -48,6 +50,8 @@ pub(super) struct BeltHold {
     pub(super) armed: bool,
     /// Whether the belt is held (told to stop; it may still be braking).
     pub(super) held: bool,
+    /// Whether the camera has looked at the belt since the hold stood it.
+    pub(super) looked: bool,
     log: Vec<Hold>,
 }
 
@@ -56,6 +60,7 @@ impl Default for BeltHold {
         Self {
             armed: true,
             held: false,
+            looked: false,
             log: Vec::new(),
         }
     }
@@ -95,6 +100,7 @@ impl BeltHold {
     fn hold(&mut self, data: &mut CellData, part: usize) {
         data.belt.run_at(0.0);
         self.held = true;
+        self.looked = false;
         self.log.push(Hold {
             part,
             from_s: data.cell.world.time_s(),
@@ -158,6 +164,38 @@ pub(super) enum NextPick {
 }
 
 impl Sorter<'_> {
+    /// Looks at the belt once a hold has stood it, before the arm picks from it, and joins what
+    /// is in view to the tracks: the arm's way down to a part near the window's start passes
+    /// over the belt behind it, where items that have come into view since the last latch's
+    /// look stand unseen (a tall part there was knocked over). The tracks then hold them as
+    /// obstacles to the pick ([`super::tracking::BeltTracking::add_tracked_parts`]).
+    pub(super) fn look_at_stand(
+        &mut self,
+        model: &CellModel,
+        data: &mut CellData,
+        hold: &mut BeltHold,
+    ) -> Result<(), Failure> {
+        if !hold.held || hold.looked || data.cell.conveyor.speed_m_s() > 0.0 {
+            return Ok(());
+        }
+        hold.looked = true;
+        let sighting = match self.camera {
+            Some(camera) => Some(self.look(model, data, camera, TargetRule::NearestStation)?),
+            None => None,
+        };
+        if let Some(tracking) = self.tracking.as_mut() {
+            match (sighting, self.camera) {
+                (Some(sighting), Some(camera)) => {
+                    tracking.see_look(model, data, camera.rig(), &sighting);
+                }
+                _ => {
+                    tracking.see_truth(data);
+                }
+            }
+        }
+        Ok(())
+    }
+
     /// The free arm's next move over the parts queued in `watch`, with the belt at
     /// `speed_m_s` when it runs: a pick (moving or standing), a hold, or parts let pass.
     pub(super) fn next_pick(

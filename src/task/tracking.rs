@@ -12,7 +12,7 @@ use crate::render::CameraRig;
 use crate::scenario::{BottleSection, ConveyorSection};
 use crate::station::{
     BeltFrame, BeltPoint, ItemKind, ItemSighting, Percept, SeenItem, Sighting, Track, TrackEnd,
-    TrackId, TrackSet, TrackerParams, TubeEnvelope, ViewSpan, bottle_obstacle,
+    TrackId, TrackSet, TrackerParams, TubeEnvelope, ViewSpan, bottle_obstacle, part_obstacle,
 };
 
 /// Looks in a row that may miss a track in view before it is counted lost: one look may miss
@@ -51,6 +51,9 @@ pub(crate) struct BeltTracking {
     /// The judge's bookkeeping: the true item at the photo-eye each time the cell named a
     /// track there (never read by the cell's decisions).
     pub(crate) truth_at_eye: Vec<(TrackId, TrueItem)>,
+    /// The size (outer radius, height, m) of the type each latched part's look named, by
+    /// track.
+    sizes: Vec<(TrackId, [f64; 2])>,
 }
 
 impl BeltTracking {
@@ -81,6 +84,7 @@ impl BeltTracking {
             view,
             tracks,
             truth_at_eye: Vec::new(),
+            sizes: Vec::new(),
         }
     }
 
@@ -127,6 +131,64 @@ impl BeltTracking {
         }
     }
 
+    /// Notes the size of the part on track `id` as its look measured it: outer radius and
+    /// height, m.
+    pub(crate) fn note_size(&mut self, id: TrackId, radius_m: f64, height_m: f64) {
+        self.sizes.retain(|(t, _)| *t != id);
+        self.sizes.push((id, [radius_m, height_m]));
+    }
+
+    /// Parts the tracks hold on the belt that `percept` does not: each part track still riding
+    /// (open, or carried out of view downstream), other than `own` (the part picked), at the
+    /// place the encoder predicts for `count`, while it is on the belt and neither the picked
+    /// part nor another part of the percept stands within [`TRACKED_SAME_M`] of it, joins the
+    /// percept's obstacles as a standing tube of the size its own look named
+    /// ([`Self::note_size`]), or of the catalogue's widest and tallest where none has: a look
+    /// that saw it upstream of the part it measured (the arm's way down to a part on a held
+    /// belt passes over the belt behind it) did not measure it.
+    pub(crate) fn add_tracked_parts(
+        &self,
+        model: &CellModel,
+        count: i64,
+        percept: &mut Percept,
+        own: Option<TrackId>,
+    ) {
+        let scenario = model.scenario();
+        let end_along_m = end_along_m(&scenario.conveyor);
+        let m = self.tracks.params().m_per_count;
+        let tubes = tube_envelope(model);
+        let near = |x: f64, y: f64, p: &Point3<f64>| (x - p.x).hypot(y - p.y) < TRACKED_SAME_M;
+        for track in self.tracks.tracks() {
+            let riding = matches!(track.end, None | Some(TrackEnd::LeftView));
+            if track.kind() != ItemKind::Part || !riding || Some(track.id) == own {
+                continue;
+            }
+            let at = track.predicted(count, m);
+            if at.along_m > end_along_m {
+                continue;
+            }
+            let point = self.frame.world_from_belt(&at);
+            let [px, py] = percept.part_xy;
+            let known = near(px, py, &point)
+                || percept.obstacles.iter().any(|o| {
+                    let c = o.world_from_shape.translation.vector;
+                    o.name == "other part" && near(c.x, c.y, &point)
+                });
+            if known {
+                continue;
+            }
+            let [radius_m, height_m] = self
+                .sizes
+                .iter()
+                .find(|(t, _)| *t == track.id)
+                .map_or([tubes.outer_radius_m, tubes.height_m], |(_, size)| *size);
+            let centre = Point3::new(point.x, point.y, point.z + height_m / 2.0);
+            percept
+                .obstacles
+                .push(part_obstacle(&centre, radius_m, height_m));
+        }
+    }
+
     /// The encoder's count now.
     pub(crate) fn count(data: &CellData) -> i64 {
         data.belt.encoder_counts()
@@ -140,17 +202,7 @@ impl BeltTracking {
         rig: &CameraRig,
         sighting: &Sighting,
     ) -> Vec<(SeenItem, TrackId)> {
-        let part_types = &model.scenario().part_types;
-        let tubes = TubeEnvelope {
-            outer_radius_m: part_types
-                .iter()
-                .map(|t| t.outer_diameter_mm / 2000.0)
-                .fold(0.0, f64::max),
-            height_m: part_types
-                .iter()
-                .map(|t| t.height_mm / 1000.0)
-                .fold(0.0, f64::max),
-        };
+        let tubes = tube_envelope(model);
         let items = self.frame.items_of(
             sighting,
             &rig.calibration,
@@ -342,3 +394,18 @@ fn end_along_m(belt: &ConveyorSection) -> f64 {
 #[cfg(test)]
 #[path = "tracked_bottles_tests.rs"]
 mod tracked_bottles_tests;
+
+/// The catalogue's widest and tallest tube.
+fn tube_envelope(model: &CellModel) -> TubeEnvelope {
+    let part_types = &model.scenario().part_types;
+    TubeEnvelope {
+        outer_radius_m: part_types
+            .iter()
+            .map(|t| t.outer_diameter_mm / 2000.0)
+            .fold(0.0, f64::max),
+        height_m: part_types
+            .iter()
+            .map(|t| t.height_mm / 1000.0)
+            .fold(0.0, f64::max),
+    }
+}

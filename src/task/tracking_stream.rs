@@ -77,6 +77,10 @@ impl Sorter<'_> {
         while halt.is_none() {
             let count = data.belt.encoder_counts();
             if !watch.parts.is_empty() || watch.belt.held {
+                if let Err(f) = self.look_at_stand(model, data, &mut watch.belt) {
+                    halt = Some(f);
+                    continue;
+                }
                 let next = self.next_pick(model, data, &mut watch, window, belt.speed_m_s);
                 let to_pass = match next {
                     NextPick::Pick(chosen) => {
