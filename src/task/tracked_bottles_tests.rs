@@ -11,7 +11,8 @@ use crate::control::ENCODER_M_PER_COUNT;
 use crate::rng::SimRng;
 use crate::scenario::{PartTypeId, Scenario};
 use crate::station::{
-    BeltPoint, ItemKind, ItemSighting, Percept, TrackEnd, TrackId, bottle_obstacle, part_obstacle,
+    BeltPoint, ItemKind, ItemSighting, Percept, TrackEnd, TrackId, ViewSpan, bottle_obstacle,
+    part_obstacle,
 };
 
 fn model() -> CellModel {
@@ -43,6 +44,30 @@ fn sighting(kind: ItemKind, along_m: f64, across_m: f64, half_length_m: f64) -> 
     }
 }
 
+/// Items over `view` 0.21 m apart (the first 0.01 m inside its upstream end), of the kind
+/// `kind_of` draws for each, across the belt within 0.1 m of its middle, each footprint's half
+/// length 0.02 m to `half_max_m`.
+fn drawn_items(
+    rng: &mut SimRng,
+    view: &ViewSpan,
+    mut kind_of: impl FnMut(usize, &mut SimRng) -> ItemKind,
+    half_max_m: f64,
+) -> Vec<ItemSighting> {
+    let n = ((view.to_m - view.from_m - 0.02) / 0.21).floor() as usize + 1;
+    (0..n)
+        .map(|i| {
+            let kind = kind_of(i, rng);
+            let along = view.from_m + 0.01 + 0.21 * i as f64;
+            sighting(
+                kind,
+                along,
+                rng.range(-0.1, 0.1),
+                rng.range(0.02, half_max_m),
+            )
+        })
+        .collect()
+}
+
 /// Bottles and parts drawn over the view, then carried on by a drawn travel: each bottle track
 /// still on the belt (open, or carried out of the view) and away from the percept's bottles
 /// becomes one standing obstacle at its predicted place, as wide as its footprint was long; a
@@ -61,18 +86,15 @@ fn bottles_the_tracks_hold_on_the_belt_are_obstacles() {
         let view = tracking.view;
         // Items in view at least 0.21 m apart (the percept's bottle below, 0.05 m from one,
         // lies more than 0.1 m from every other).
-        let n = ((view.to_m - view.from_m - 0.02) / 0.21).floor() as usize + 1;
-        let items: Vec<ItemSighting> = (0..n)
-            .map(|i| {
-                let kind = if rng.uniform() < 0.5 {
-                    ItemKind::Bottle
-                } else {
-                    ItemKind::Part
-                };
-                let along = view.from_m + 0.01 + 0.21 * i as f64;
-                sighting(kind, along, rng.range(-0.1, 0.1), rng.range(0.02, 0.11))
-            })
-            .collect();
+        let kind = |_: usize, rng: &mut SimRng| {
+            if rng.uniform() < 0.5 {
+                ItemKind::Bottle
+            } else {
+                ItemKind::Part
+            }
+        };
+        let items = drawn_items(&mut rng, &view, kind, 0.11);
+        let n = items.len();
         assert!(n >= 2, "a view of {:.2} m", view.to_m - view.from_m);
         let ids = tracking.tracks.update(0, &items, &view);
         // One track lost, and the belt carried on by up to the belt's far end and beyond.
@@ -160,19 +182,16 @@ fn parts_the_tracks_hold_on_the_belt_are_obstacles() {
     for round in 0..40 {
         let mut tracking = BeltTracking::new(&model, top_z);
         let view = tracking.view;
-        let n = ((view.to_m - view.from_m - 0.02) / 0.21).floor() as usize + 1;
         // The first item is the part picked; the others drawn.
-        let items: Vec<ItemSighting> = (0..n)
-            .map(|i| {
-                let kind = if i == 0 || rng.uniform() < 0.6 {
-                    ItemKind::Part
-                } else {
-                    ItemKind::Bottle
-                };
-                let along = view.from_m + 0.01 + 0.21 * i as f64;
-                sighting(kind, along, rng.range(-0.1, 0.1), rng.range(0.02, 0.05))
-            })
-            .collect();
+        let kind = |i: usize, rng: &mut SimRng| {
+            if i == 0 || rng.uniform() < 0.6 {
+                ItemKind::Part
+            } else {
+                ItemKind::Bottle
+            }
+        };
+        let items = drawn_items(&mut rng, &view, kind, 0.05);
+        let n = items.len();
         let ids = tracking.tracks.update(0, &items, &view);
         let lost = ids[1 + rng.below(n as u64 - 1) as usize];
         tracking.tracks.close(lost, TrackEnd::Lost);
