@@ -38,6 +38,7 @@ impl Sorter<'_> {
         data: &mut CellData,
         seen: Option<Sighting>,
     ) -> Result<Percept, Failure> {
+        self.hidden_at_beam = false;
         match (self.camera, seen) {
             (_, Some(sighting)) => percept_from(model, data, &sighting),
             (Some(camera), None) => {
@@ -47,6 +48,17 @@ impl Sorter<'_> {
                 // at again, a few times at most.
                 let rig = camera.rig();
                 for _ in 0..MAX_BORDER_JOGS {
+                    self.hidden_at_beam = hidden_at_beam(model, data, &sighting);
+                    if self.hidden_at_beam {
+                        return Err(Failure::new(
+                            FailureReason::NotDetected,
+                            format!(
+                                "the item at the photo-eye is hidden from the camera: no part \
+                                 in view, and the {} bottle(s) it sees stand clear of the beam",
+                                sighting.bottles.len()
+                            ),
+                        ));
+                    }
                     let frame_px = (rig.width_px, rig.height_px);
                     let belt_top_z = data.cell.belt_top_z;
                     let calibration = &rig.calibration;
@@ -151,6 +163,37 @@ fn surroundings_to_see(
 
 /// See [`surroundings_to_see`], m.
 const SURROUND_MARGIN_M: f64 = 0.02;
+
+/// A bottle whose footprint, as fitted, comes within this of the photo-eye's beam may be what
+/// breaks it, m: more than a fit's error.
+const AT_BEAM_MARGIN_M: f64 = 0.02;
+
+/// Whether what breaks the photo-eye's beam is hidden from the camera: `sighting` saw no part,
+/// and every bottle it saw stands clear of the beam (each pose's footprint along the belt, its
+/// axis's span grown by the radius and [`AT_BEAM_MARGIN_M`], misses the beam's line), while the
+/// beam is broken. A camera leaning back along the belt sees a standing bottle behind the part
+/// at the beam and not the part: jogging the belt on, as for a part still upstream, carried the
+/// part out of reach.
+fn hidden_at_beam(model: &CellModel, data: &CellData, sighting: &Sighting) -> bool {
+    if sighting.target.is_some() || sighting.bottles.is_empty() || !data.photo_eye_reports() {
+        return false;
+    }
+    let scenario = model.scenario();
+    let (eye_x, bottle) = (scenario.conveyor.photo_eye_x_m, &scenario.bottle);
+    let reach = bottle.radius_m + AT_BEAM_MARGIN_M;
+    let at_beam = |world: &nalgebra::Isometry3<f64>| {
+        let (a, b) = (
+            world * Point3::origin(),
+            world * Point3::new(0.0, 0.0, bottle.height_m),
+        );
+        a.x.min(b.x) - reach <= eye_x && eye_x <= a.x.max(b.x) + reach
+    };
+    !sighting
+        .bottles
+        .iter()
+        .flat_map(|b| &b.poses)
+        .any(|p| at_beam(&p.world_from_bottle))
+}
 
 impl CellData {
     /// Runs the belt downstream by `distance_m` of encoder travel at the scenario's speed and

@@ -118,7 +118,8 @@ impl Sorter<'_> {
         let Some(camera) = self.camera else {
             return cycle;
         };
-        if !not_seen {
+        // Not when what breaks the beam is only hidden: indexing would carry it away.
+        if !not_seen || self.hidden_at_beam {
             return cycle;
         }
         let eye_x = model.scenario().conveyor.photo_eye_x_m;

@@ -26,6 +26,9 @@ pub(crate) struct Sorter<'a> {
     pub(crate) tracking: Option<BeltTracking>,
     /// The track of the item at the photo-eye, once identified.
     pub(crate) station_track: Option<TrackId>,
+    /// Whether the last look saw no part and only bottles clear of the photo-eye's beam: what
+    /// breaks the beam is hidden from the camera, not still upstream.
+    pub(crate) hidden_at_beam: bool,
 }
 
 /// The planner's view of the cell as reset: the robot's collision shapes at home and the fixed
@@ -51,6 +54,7 @@ impl<'a> Sorter<'a> {
             misidentified: None,
             tracking: None,
             station_track: None,
+            hidden_at_beam: false,
         }
     }
 }
