@@ -66,8 +66,11 @@ pub struct Carried {
 
 impl Carried {
     /// The body as held by a tool leaning `tilt_rad` about its jaw line (the TCP's x axis) at
-    /// the grasp: turned by the opposite lean about the TCP.
+    /// the grasp: turned by the opposite lean about the TCP (itself for no lean).
     pub fn leaning(&self, tilt_rad: f64) -> Self {
+        if tilt_rad == 0.0 {
+            return self.clone();
+        }
         let turn = UnitQuaternion::from_axis_angle(&Vector3::x_axis(), -tilt_rad);
         Self {
             tcp_from_shape: Isometry3::from_parts(Translation3::identity(), turn)

@@ -180,15 +180,18 @@ impl Sorter<'_> {
         }
         hold.looked = true;
         let sighting = match self.camera {
-            Some(camera) => Some(self.look(model, data, camera, TargetRule::NearestStation)?),
+            Some(camera) => Some((
+                camera,
+                self.look(model, data, camera, TargetRule::NearestStation)?,
+            )),
             None => None,
         };
         if let Some(tracking) = self.tracking.as_mut() {
-            match (sighting, self.camera) {
-                (Some(sighting), Some(camera)) => {
+            match sighting {
+                Some((camera, sighting)) => {
                     tracking.see_look(model, data, camera.rig(), &sighting);
                 }
-                _ => {
+                None => {
                     tracking.see_truth(data);
                 }
             }

@@ -98,26 +98,8 @@ impl BeltTracking {
     /// `count` is the encoder's count now.
     pub(crate) fn add_tracked_bottles(&self, model: &CellModel, count: i64, percept: &mut Percept) {
         let scenario = model.scenario();
-        let belt = &scenario.conveyor;
-        let end_along_m = end_along_m(belt);
-        let m = self.tracks.params().m_per_count;
-        for track in self.tracks.tracks() {
-            let riding = matches!(track.end, None | Some(TrackEnd::LeftView));
-            if track.kind() != ItemKind::Bottle || !riding {
-                continue;
-            }
-            let at = track.predicted(count, m);
-            if at.along_m > end_along_m {
-                continue;
-            }
-            let point = self.frame.world_from_belt(&at);
-            let known = percept.obstacles.iter().any(|o| {
-                o.name == "bottle" && {
-                    let d = o.world_from_shape.translation.vector - point.coords;
-                    d.x.hypot(d.y) < TRACKED_SAME_M
-                }
-            });
-            if known {
+        for (track, point) in self.riding(model, ItemKind::Bottle, count) {
+            if holds_near(percept, "bottle", &point) {
                 continue;
             }
             let bottle = BottleSection {
@@ -129,6 +111,27 @@ impl BeltTracking {
                 .obstacles
                 .push(bottle_obstacle(&bottle, &pose, false, 0.0));
         }
+    }
+
+    /// The tracks of `kind` still riding on the belt at encoder count `count` (open, or carried
+    /// out of view downstream; not lost, not picked, not past the belt's end), each with the
+    /// place the encoder predicts for it, world (on the belt's top).
+    fn riding<'t>(
+        &'t self,
+        model: &CellModel,
+        kind: ItemKind,
+        count: i64,
+    ) -> impl Iterator<Item = (&'t Track, Point3<f64>)> + 't {
+        let end_along_m = end_along_m(&model.scenario().conveyor);
+        let m = self.tracks.params().m_per_count;
+        self.tracks.tracks().iter().filter_map(move |track| {
+            let riding = matches!(track.end, None | Some(TrackEnd::LeftView));
+            if track.kind() != kind || !riding {
+                return None;
+            }
+            let at = track.predicted(count, m);
+            (at.along_m <= end_along_m).then(|| (track, self.frame.world_from_belt(&at)))
+        })
     }
 
     /// Notes the size of the part on track `id` as its look measured it: outer radius and
@@ -153,28 +156,11 @@ impl BeltTracking {
         percept: &mut Percept,
         own: Option<TrackId>,
     ) {
-        let scenario = model.scenario();
-        let end_along_m = end_along_m(&scenario.conveyor);
-        let m = self.tracks.params().m_per_count;
         let tubes = tube_envelope(model);
-        let near = |x: f64, y: f64, p: &Point3<f64>| (x - p.x).hypot(y - p.y) < TRACKED_SAME_M;
-        for track in self.tracks.tracks() {
-            let riding = matches!(track.end, None | Some(TrackEnd::LeftView));
-            if track.kind() != ItemKind::Part || !riding || Some(track.id) == own {
-                continue;
-            }
-            let at = track.predicted(count, m);
-            if at.along_m > end_along_m {
-                continue;
-            }
-            let point = self.frame.world_from_belt(&at);
-            let [px, py] = percept.part_xy;
-            let known = near(px, py, &point)
-                || percept.obstacles.iter().any(|o| {
-                    let c = o.world_from_shape.translation.vector;
-                    o.name == "other part" && near(c.x, c.y, &point)
-                });
-            if known {
+        let [px, py] = percept.part_xy;
+        for (track, point) in self.riding(model, ItemKind::Part, count) {
+            let picked = (px - point.x).hypot(py - point.y) < TRACKED_SAME_M;
+            if Some(track.id) == own || picked || holds_near(percept, "other part", &point) {
                 continue;
             }
             let [radius_m, height_m] = self
@@ -394,6 +380,17 @@ fn end_along_m(belt: &ConveyorSection) -> f64 {
 #[cfg(test)]
 #[path = "tracked_bottles_tests.rs"]
 mod tracked_bottles_tests;
+
+/// Whether `percept` holds an obstacle named `name` whose centre stands within
+/// [`TRACKED_SAME_M`] of `point` on the belt's plane.
+fn holds_near(percept: &Percept, name: &str, point: &Point3<f64>) -> bool {
+    percept.obstacles.iter().any(|o| {
+        o.name == name && {
+            let d = o.world_from_shape.translation.vector - point.coords;
+            d.x.hypot(d.y) < TRACKED_SAME_M
+        }
+    })
+}
 
 /// The catalogue's widest and tallest tube.
 fn tube_envelope(model: &CellModel) -> TubeEnvelope {

@@ -185,9 +185,7 @@ impl Sorter<'_> {
         let bin = decide(model, &item.percept).1;
         let planner = &self.planner;
         let mut percept = shifted(&item.percept, x - item.percept.part_xy[0]);
-        percept
-            .obstacles
-            .extend(self.tracked_near(model, data, item, x, &percept));
+        self.add_tracked(model, data, item, x, &mut percept);
         // The way over from a bin must not sweep through what the arm placed there.
         for (bin_body, &placed) in data.cell.bins.iter().zip(&data.bin_fill) {
             percept.obstacles.extend(placed_in(model, bin_body, placed));
@@ -226,32 +224,29 @@ impl Sorter<'_> {
         })
     }
 
-    /// What the tracks hold on the belt that `percept` (`item`'s part met at `x` along the
-    /// belt) does not, where the encoder will have carried it by the meet: the latch's look saw
-    /// the part's neighbours then, not what came into view since, and the arm's way down to a
-    /// part near the window's start passes over the belt behind it (a 100 mm tube there was
-    /// knocked over). They join the part's neighbours: the pick is checked against them, and
-    /// its approach and lift clear their tops (`planning::GraspSearch`). Checked against
-    /// alone, with the approach as low as the part's own neighbours allow, the planner found
-    /// no way down to more parts (a user's stream, 13 of 16 streams whole against 16).
-    fn tracked_near(
+    /// Adds to `percept` (`item`'s part met at `x` along the belt) what the tracks hold on the
+    /// belt that it does not, where the encoder will have carried it by the meet: the latch's
+    /// look saw the part's neighbours then, not what came into view since, and the arm's way
+    /// down to a part near the window's start passes over the belt behind it (a 100 mm tube
+    /// there was knocked over). They join the part's neighbours: the pick is checked against
+    /// them, and its approach and lift clear their tops (`planning::GraspSearch`). Checked
+    /// against alone, with the approach as low as the part's own neighbours allow, the planner
+    /// found no way down to more parts (a user's stream, 13 of 16 streams whole against 16).
+    fn add_tracked(
         &self,
         model: &CellModel,
         data: &CellData,
         item: &Latched,
         x: f64,
-        percept: &Percept,
-    ) -> Vec<PerceivedObstacle> {
+        percept: &mut Percept,
+    ) {
         let Some(tracking) = &self.tracking else {
-            return Vec::new();
+            return;
         };
         let now = data.belt.encoder_counts();
         let meet = now + ((x - item.x_at(now)) / ENCODER_M_PER_COUNT).round() as i64;
-        let mut seen = percept.clone();
-        let before = seen.obstacles.len();
-        tracking.add_tracked_bottles(model, meet, &mut seen);
-        tracking.add_tracked_parts(model, meet, &mut seen, item.track);
-        seen.obstacles.split_off(before)
+        tracking.add_tracked_bottles(model, meet, percept);
+        tracking.add_tracked_parts(model, meet, percept, item.track);
     }
 
     /// The lift from the grasp, planned for the part where the belt (at `speed`) will have
@@ -370,11 +365,7 @@ impl Sorter<'_> {
             let carry =
                 JointTrajectory::join(vec![lift, transport], true).within_tool_limits(arm, &limits);
             let over_s = (carry.part_starts_s()[1], carry.duration_s());
-            let carried = if lifted.tilt_rad == 0.0 {
-                planner.carried_for(&percept)
-            } else {
-                planner.carried_for(&percept).leaning(lifted.tilt_rad)
-            };
+            let carried = planner.carried_for(&percept).leaning(lifted.tilt_rad);
             let grip = percept.part_outer_radius_m;
             let hit = checker.check_span(&carry, over_s, grip, Some(&carried), &[PART_OBSTACLE]);
             if hit.is_none() && carry.duration_s() < place.carry.duration_s() {
